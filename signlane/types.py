@@ -1,0 +1,61 @@
+"""Frozen dataclasses that flow between stages: Frame -> LaneEstimate/SignDetection -> Command.
+
+Units and signs everywhere: `offset` is the car's lateral offset from the ego-lane centre as a
+fraction of lane width, positive when the car is right of centre; `heading` is radians between
+the car's axis and the lane direction, positive when the car points to the right of the lane;
+`curvature` is 1/metres, positive when the road bends right. Steering in [-1, 1], positive right.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Frame:
+    """One camera frame: image_bgr is uint8 (H, W, 3) BGR."""
+
+    image_bgr: np.ndarray
+    t: float = 0.0
+    seq: int = 0
+
+
+@dataclass(frozen=True)
+class LaneEstimate:
+    """What a lane method reports. Boundary polylines are (N, 2) float image pixels or None."""
+
+    method: str
+    found: bool
+    offset: float = 0.0
+    heading: float = 0.0
+    curvature: float = 0.0
+    confidence: float = 0.0
+    left: np.ndarray | None = None
+    right: np.ndarray | None = None
+    debug_mask: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class SignDetection:
+    """A sign (or a proposal): box is (x, y, w, h) in image pixels."""
+
+    label: str
+    score: float
+    box: tuple[int, int, int, int]
+    color: str = ""
+
+
+@dataclass(frozen=True)
+class Perception:
+    frame: Frame
+    lane: LaneEstimate
+    signs: tuple[SignDetection, ...] = ()
+    timing_ms: dict[str, float] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Command:
+    steering: float
+    throttle: float
+    state: str = "cruise"
