@@ -12,6 +12,8 @@ from typing import Iterable, Sequence
 import cv2
 import numpy as np
 
+from signlane.fileio import atomic_imwrite
+
 LEFT_BGR, RIGHT_BGR, CENTER_BGR = (255, 120, 0), (0, 200, 0), (0, 230, 255)
 MASK_BGR = (255, 0, 255)
 SIGN_BOX_BGR = {"stop": (0, 0, 255), "unknown": (160, 160, 160)}
@@ -91,12 +93,7 @@ def write_image(path: str | Path, image: np.ndarray) -> None:
     """Write an image atomically (temp name in the same folder, then rename)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    ok, buf = cv2.imencode(path.suffix or ".png", image)
-    if not ok:
-        raise OSError(f"{path}: could not encode image")
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_bytes(buf.tobytes())
-    os.replace(tmp, path)
+    atomic_imwrite(path if path.suffix else path.with_suffix(".png"), image)
 
 
 class VideoOut:
@@ -128,3 +125,39 @@ class VideoOut:
         else:
             self._writer.release()
             self._tmp.unlink(missing_ok=True)
+
+
+def bar_chart(title: str, labels: Sequence[str], series: dict[str, Sequence[float]], ymax: float | None = None,
+              size: tuple[int, int] = (900, 420)) -> np.ndarray:
+    """A grouped bar chart (one group per label, one bar per series) as a BGR image."""
+    W, H = size
+    img = np.full((H, W, 3), 255, np.uint8)
+    left, bottom, top = 60, 70, 40
+    vals = [v for s in series.values() for v in s if np.isfinite(v)]
+    ymax = ymax or (max(vals) * 1.15 if vals else 1.0) or 1.0
+    cv2.putText(img, title, (left, 25), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (0, 0, 0), 1, cv2.LINE_AA)
+    for k in range(5):  # y grid and ticks
+        v = ymax * k / 4
+        y = int(H - bottom - (H - bottom - top) * k / 4)
+        cv2.line(img, (left, y), (W - 10, y), (225, 225, 225), 1)
+        cv2.putText(img, f"{v:.3g}", (5, y + 4), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (80, 80, 80), 1, cv2.LINE_AA)
+    palette = [(200, 120, 30), (40, 160, 240), (60, 180, 60), (180, 60, 180), (60, 60, 220)]
+    gw = (W - left - 10) / max(len(labels), 1)
+    bw = gw * 0.8 / max(len(series), 1)
+    for i, lab in enumerate(labels):
+        x0 = left + i * gw + gw * 0.1
+        for j, (name, vs) in enumerate(series.items()):
+            v = vs[i]
+            if not np.isfinite(v):
+                continue
+            h = (H - bottom - top) * min(v, ymax) / ymax
+            cv2.rectangle(img, (int(x0 + j * bw), int(H - bottom - h)), (int(x0 + (j + 1) * bw) - 2, H - bottom),
+                          palette[j % len(palette)], -1)
+        cv2.putText(img, lab[:18], (int(x0), H - bottom + 18), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 1,
+                    cv2.LINE_AA)
+    for j, name in enumerate(series):  # legend
+        y = H - 25
+        x = left + j * 200
+        cv2.rectangle(img, (x, y - 10), (x + 12, y + 2), palette[j % len(palette)], -1)
+        cv2.putText(img, name, (x + 18, y), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
+    return img

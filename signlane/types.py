@@ -34,6 +34,7 @@ class LaneEstimate:
     left: np.ndarray | None = None
     right: np.ndarray | None = None
     debug_mask: np.ndarray | None = None
+    lane_width_m: float = 0.0  # measured (or nominal) width; 0 = unknown
 
 
 @dataclass(frozen=True)

@@ -122,3 +122,14 @@ def test_signs_face_the_traffic_they_are_for():
     assert track.turn_of(west, south) == "right"  # eastbound, turning south
     assert track.turn_of(east, south) == "left"  # westbound, turning south
     assert track.turn_of(west, east) == "straight"
+
+
+def test_procedural_maps_do_not_depend_on_the_process_hash_seed():
+    """String hashing differs per process; maps must not (datasets are built by worker processes)."""
+    import subprocess
+    import sys
+    code = ("import json; from signlane.world.procedural import generate_map; "
+            "print(json.dumps([generate_map(s) for s in range(12)]))")
+    outs = {subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                           env={**__import__("os").environ, "PYTHONHASHSEED": str(h)}).stdout for h in (1, 2, 3)}
+    assert len(outs) == 1

@@ -118,7 +118,7 @@ def generate_map(seed: int, name: str | None = None, size: str = "medium",
         elif len(sides) == 3:
             missing = ({"N", "E", "S", "W"} - sides).pop()
             tiles[c] = (4, TEE_ROT[missing])
-        elif OPPOSITE[next(iter(sides))] in sides:
+        elif OPPOSITE[min(sides)] in sides:
             tiles[c] = (0, 0 if "N" in sides else 90)
         else:
             k = 4 if rng.random() < 0.5 else 2
@@ -130,13 +130,13 @@ def generate_map(seed: int, name: str | None = None, size: str = "medium",
             cells = {(c[0] + a * su[0] + b * sv[0], c[1] + a * su[1] + b * sv[1]) for a, b in off}
             tiles[(c[0] + du, c[1] + dv)] = (2 if k == 2 else 3, rot)
             used |= cells
-            for s in sides:
+            for s in sorted(sides):
                 reach[(n, s)] = k - 1
             continue
         used.add(c)
     # plain road cells along each edge, skipping what turn blocks already cover
     for n, sides in nodes.items():
-        for s in sides & {"E", "S"}:
+        for s in sorted(sides & {"E", "S"}):
             m = (n[0] + (s == "E"), n[1] + (s == "S"))
             a, b = cell_of[n], cell_of[m]
             step = SIDES[s]
@@ -171,9 +171,9 @@ def _approaches(tiles: dict) -> list[tuple[tuple[int, int], str, set[str]]]:
             continue
         sides = {"N", "E", "S", "W"} if t == 1 else {"N", "E", "S", "W"} - {
             next(k for k, v in TEE_ROT.items() if v == rot)}
-        for entry in sides:
+        for entry in sorted(sides):  # sorted: set order of strings differs between processes
             turns = set()
-            for ex in sides - {entry}:
+            for ex in sorted(sides - {entry}):
                 if ex == OPPOSITE[entry]:
                     turns.add("straight")
                 else:

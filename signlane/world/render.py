@@ -8,7 +8,7 @@ world-fixed noise texture gives the ground its grain; a 360-degree panorama give
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
@@ -55,11 +55,12 @@ class Renderer:
                s_hint: float | None = None) -> Sample:
         effects = effects or Effects.clean()
         rng = rng if rng is not None else np.random.default_rng(0)
+        nominal = camera
         camera = effects.jitter_camera(camera, rng)
         image, label, drawn = self._draw(pose, camera)
         image = apply_effects(image, effects, rng)
         truth = compute_truth(self.scene, pose, camera, label, drawn, route, s_hint)
-        return Sample(image, truth)
+        return Sample(image, replace(truth, nominal_camera=nominal))
 
     # --- drawing -----------------------------------------------------------------------------
     def _draw(self, pose: Pose, camera: Camera):

@@ -134,9 +134,28 @@ class Route:
     def pose_at(self, s: float, lateral_m: float = 0.0, heading_offset: float = 0.0) -> "Pose":
         """Car pose at arc length s, lateral_m right of the ego-lane centre, heading offset
         (radians, positive = pointing right of the lane direction)."""
-        i = self.index_at(s)
-        p = self.lane[i] + lateral_m * self.right[i]
-        return Pose(float(p[0]), float(p[1]), float(self.heading[i] - heading_offset))
+        i, j, t = self._bracket(s)
+        lane = self.lane[i] * (1 - t) + self.lane[j] * t
+        right = self.right[i] * (1 - t) + self.right[j] * t
+        right /= max(float(np.hypot(*right)), 1e-12)
+        heading = self.heading[i] + t * _wrap(self.heading[j] - self.heading[i])
+        p = lane + lateral_m * right
+        return Pose(float(p[0]), float(p[1]), float(heading - heading_offset))
+
+    def _bracket(self, s: float) -> tuple[int, int, float]:
+        """Samples i, j around arc length s and the fraction t of the way from i to j."""
+        if self.closed:
+            s = s % self.length
+        n = len(self.s)
+        j = int(np.searchsorted(self.s, s, side="right"))
+        if j >= n:  # past the last sample: on a closed route, the closing segment
+            if not self.closed:
+                return n - 1, n - 1, 0.0
+            seg = self.length - self.s[-1]
+            return n - 1, 0, float(np.clip((s - self.s[-1]) / max(seg, 1e-9), 0, 1))
+        i = max(j - 1, 0)
+        seg = self.s[j] - self.s[i]
+        return i, j, float(np.clip((s - self.s[i]) / seg, 0, 1)) if seg > 0 else 0.0
 
     def ahead(self, s: float, dist: float) -> slice | np.ndarray:
         """Indices of samples from s to s+dist (wrapping on closed routes)."""
@@ -161,10 +180,29 @@ class Route:
             idx = np.arange(len(self.s))
         else:
             idx = self.ahead(s_hint - window / 2, window)
-        d = self.lane[idx] - np.array([x, y])
-        j = idx[int(np.argmin(np.einsum("ij,ij->i", d, d)))]
-        lat = float(np.dot(np.array([x, y]) - self.lane[j], self.right[j]))
-        return float(self.s[j]), lat
+        p = np.array([x, y])
+        d = self.lane[idx] - p
+        j = int(idx[int(np.argmin(np.einsum("ij,ij->i", d, d)))])
+        n = len(self.s)
+        best = (np.inf, float(self.s[j]), 0.0)
+        # refine on the two segments around the nearest sample
+        for a, b in ((j - 1, j), (j, j + 1)):
+            if not self.closed and (a < 0 or b >= n):
+                continue
+            a, b = a % n, b % n
+            seg = self.lane[b] - self.lane[a]
+            t = float(np.clip(np.dot(p - self.lane[a], seg) / max(np.dot(seg, seg), 1e-12), 0.0, 1.0))
+            q = self.lane[a] + t * seg
+            dist = float(np.hypot(*(p - q)))
+            if dist < best[0]:
+                ds = (self.length - self.s[a]) if b < a else (self.s[b] - self.s[a])
+                right = self.right[a] * (1 - t) + self.right[b] * t
+                best = (dist, float(self.s[a] + t * ds), float(np.dot(p - q, right / np.hypot(*right))))
+        return best[1], best[2]
+
+
+def _wrap(a: float) -> float:
+    return (a + math.pi) % (2 * math.pi) - math.pi
 
 
 @dataclass(frozen=True)

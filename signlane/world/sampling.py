@@ -41,6 +41,7 @@ class SamplerConfig:
     lateral_m: float = 0.6  # std of the car's lateral offset from the lane centre
     heading_deg: float = 4.0  # std of the car's heading error
     map_size: str = "medium"
+    looks_strength: float = 1.0  # worn/faded paint and shadows; the hard test set uses 2
 
 
 class FrameSampler:
@@ -62,7 +63,8 @@ class FrameSampler:
         track = Track.from_via(generate_map(int(rng.integers(1 << 31)), size=cfg.map_size),
                                cell_m=float(rng.uniform(10, 16)) if cfg.randomise else 12.0, style=style)
         self._route = Route.drive(track, 2000.0, random_policy(rng), reverse=bool(rng.random() < 0.5))
-        scene = build_scene(track, seed=int(rng.integers(1 << 31)), randomise=cfg.randomise)
+        scene = build_scene(track, seed=int(rng.integers(1 << 31)), randomise=cfg.randomise,
+                            looks_strength=cfg.looks_strength)
         self._renderer = Renderer(scene, sign_strength=0.7 if cfg.randomise else 0.0)
         self._group = group
 

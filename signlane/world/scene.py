@@ -49,8 +49,9 @@ def random_looks(rng: np.random.Generator, strength: float = 1.0) -> Looks:
     return Looks(asphalt=asphalt, grass=grass, white=jitter((235, 235, 235), 12),
                  yellow=jitter((40, 190, 230), 15), sky_top=jitter((225, 170, 110), 25),
                  sky_horizon=jitter((235, 215, 195), 20), texture=float(rng.uniform(0.04, 0.2)),
-                 worn_prob=float(rng.uniform(0, 0.25) * strength), fade_prob=float(rng.uniform(0, 0.3) * strength),
-                 shadows=int(rng.integers(0, 4) * (strength > 0)))
+                 worn_prob=float(min(0.6, rng.uniform(0, 0.25) * strength)),
+                 fade_prob=float(min(0.8, rng.uniform(0, 0.3) * strength)),
+                 shadows=int(round(rng.integers(0, 4) * strength)))
 
 
 def random_style(rng: np.random.Generator) -> RoadStyle:
@@ -255,10 +256,10 @@ def _panorama(rng: np.random.Generator, looks: Looks, width: int = 1440, height:
 
 
 def build_scene(track: Track, seed: int = 0, looks: Looks | None = None,
-                randomise: bool = False) -> Scene:
+                randomise: bool = False, looks_strength: float = 1.0) -> Scene:
     """Precompute everything the renderer needs for a track; the same seed gives the same scene."""
     rng = np.random.default_rng(seed)
-    looks = looks or (random_looks(rng) if randomise else Looks())
+    looks = looks or (random_looks(rng, looks_strength) if randomise else Looks())
     paint = Paint.from_polygons([p for t in track.tiles for p in _tile_paint(track, t, looks, rng)])
     objects = list(track.signs) + list(track.distractors) + _roadside_distractors(track, rng)
     return Scene(track, looks, paint, objects, _noise_texture(rng), float(rng.uniform(4, 10)),

@@ -54,6 +54,7 @@ class GroundTruth:
     signs: tuple[SignTruth, ...] = ()
     junction: JunctionTruth | None = None
     distractors: tuple[tuple[str, tuple[int, int, int, int]], ...] = field(default=())
+    nominal_camera: Camera | None = None  # the camera before per-frame pose jitter (what a user calibrates)
 
     def to_label(self) -> dict:
         """The dataset contract's lane/sign fields (JSON-serialisable)."""
@@ -87,9 +88,8 @@ def compute_truth(scene, pose: Pose, camera: Camera, paint_ids: np.ndarray, draw
     if route is None:
         return GroundTruth(camera, pose, marking, drivable, empty, empty, empty, signs=signs, distractors=others)
     s, lateral = route.project(pose.x, pose.y, s_hint)
-    i = route.index_at(s)
     lw = route.track.style.lane_width
-    heading = _wrap(route.heading[i] - pose.heading)
+    heading = _wrap(route.pose_at(s).heading - pose.heading)
     idx = route.ahead(s - 2.0, LOOKAHEAD_M)
     step = max(1, int(POLYLINE_STEP_M / max(route.length / len(route.s), 1e-6)))
     idx = idx[::step]

@@ -1,0 +1,131 @@
+"""Contact sheets a person can look at to check a dataset (PNG, BGR)."""
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from data_gen.common import atomic_imwrite
+from signlane.world.art import SIGN_CLASSES
+
+BG = (40, 40, 40)  # BGR sheet background
+MASK_BGR = np.array([255, 0, 255], np.float32)  # magenta: unlike any road, sky or sign colour
+MASK_ALPHA = 0.55
+LINE_BGR = {"left": (255, 160, 0), "right": (0, 140, 255), "center": (0, 255, 255)}
+HEADER_H = 22
+
+
+def _put_label(img: np.ndarray, text: str, org: tuple[int, int], scale: float = 0.4) -> None:
+    # black outline under white text stays readable on any tile
+    cv2.putText(img, text, org, cv2.FONT_HERSHEY_SIMPLEX, scale, (0, 0, 0), 3, cv2.LINE_AA)
+    cv2.putText(img, text, org, cv2.FONT_HERSHEY_SIMPLEX, scale, (255, 255, 255), 1, cv2.LINE_AA)
+
+
+def _fit(img: np.ndarray, tile: tuple[int, int]) -> np.ndarray:
+    """`img` (uint8 (H, W) or (H, W, 3) BGR) scaled to fit a (w, h) tile, letterboxed on BG."""
+    tw, th = tile
+    if img.ndim == 2:
+        img = cv2.cvtColor(img, cv2.COLOR_GRAY2BGR)
+    h, w = img.shape[:2]
+    k = min(tw / w, th / h)
+    nw, nh = max(1, round(w * k)), max(1, round(h * k))
+    # small crops are enlarged with nearest so a person sees the real pixels
+    interp = cv2.INTER_AREA if k < 1 else cv2.INTER_NEAREST
+    out = np.full((th, tw, 3), BG, np.uint8)
+    y0, x0 = (th - nh) // 2, (tw - nw) // 2
+    out[y0:y0 + nh, x0:x0 + nw] = cv2.resize(img, (nw, nh), interpolation=interp)
+    return out
+
+
+def contact_sheet(images: Sequence[np.ndarray], labels: Sequence[str] | None = None, cols: int = 8,
+                  tile: tuple[int, int] = (160, 120)) -> np.ndarray:
+    """Tile `images` (uint8 (H, W) grey or (H, W, 3) BGR, any sizes) row by row into one uint8
+    (rows*h, cols*w, 3) BGR sheet; `tile` is (w, h); `labels` are written at each tile's bottom."""
+    n = max(1, len(images))
+    cols = max(1, min(cols, n))
+    rows = (n + cols - 1) // cols
+    tw, th = tile
+    sheet = np.full((rows * th, cols * tw, 3), BG, np.uint8)
+    for k, img in enumerate(images):
+        r, c = divmod(k, cols)
+        t = _fit(img, tile)
+        if labels is not None and k < len(labels) and labels[k]:
+            _put_label(t, str(labels[k]), (3, th - 5))
+        sheet[r * th:(r + 1) * th, c * tw:(c + 1) * tw] = t
+    cv2.rectangle(sheet, (0, 0), (sheet.shape[1] - 1, sheet.shape[0] - 1), BG, 1)
+    return sheet
+
+
+def lane_overlay(image: np.ndarray, mask: np.ndarray, lane: dict | None = None) -> np.ndarray:
+    """`image` (uint8 (H, W, 3) BGR) with `mask` (uint8 (H, W) 0/255) tinted in semi-transparent
+    magenta and the label's left/right/center image polylines drawn; returns a new BGR image."""
+    out = image.astype(np.float32)
+    on = mask > 127
+    out[on] = out[on] * (1 - MASK_ALPHA) + MASK_BGR * MASK_ALPHA
+    out = out.astype(np.uint8)
+    thick = max(1, round(image.shape[1] / 200))  # stays visible when the sheet shrinks the frame
+    for key, color in LINE_BGR.items():
+        pts = np.asarray((lane or {}).get(key, []), np.float32).reshape(-1, 2)
+        if len(pts) >= 2:
+            cv2.polylines(out, [np.round(pts * 16).astype(np.int32)], False, color, thick, cv2.LINE_AA, 4)
+    return out
+
+
+def read_jsonl(path: Path, limit: int | None = None, stride: int = 1) -> list[dict]:
+    """Every `stride`-th object of a JSON-lines file, at most `limit` of them."""
+    rows = []
+    with open(path) as f:
+        for k, line in enumerate(f):
+            if line.strip() and k % stride == 0:
+                rows.append(json.loads(line))
+            if limit is not None and len(rows) >= limit:
+                break
+    return rows
+
+
+def write_lane_preview(out_dir: str | Path, count: int = 32, cols: int = 8,
+                       tile: tuple[int, int] = (240, 180), stride: int = 1) -> Path:
+    """`preview.png` in a lane/drive dataset: `count` frames (every `stride`-th) with mask and
+    polylines, each labelled with its id and teacher steering."""
+    out_dir = Path(out_dir)
+    tiles, names = [], []
+    for row in read_jsonl(out_dir / "labels.jsonl", count, stride):
+        img = cv2.imread(str(out_dir / row["image"]), cv2.IMREAD_COLOR)
+        mask = cv2.imread(str(out_dir / row["mask"]), cv2.IMREAD_GRAYSCALE)
+        tiles.append(lane_overlay(img, mask, row.get("lane")))
+        names.append(f"{row['id']} steer {row.get('steering', 0.0):+.2f}")
+    path = out_dir / "preview.png"
+    atomic_imwrite(path, contact_sheet(tiles, names, cols, tile))
+    return path
+
+
+def _spread(items: list, k: int) -> list:
+    """Up to k items spread evenly over the list (so both crop sources show up)."""
+    if len(items) <= k:
+        return items
+    return [items[int(j)] for j in np.linspace(0, len(items) - 1, k).round()]
+
+
+def write_sign_preview(out_dir: str | Path, per_class: int = 16, classes: Sequence[str] = SIGN_CLASSES,
+                       tile: tuple[int, int] = (64, 64)) -> Path:
+    """`preview.png` in a sign dataset: one row per class, a header with the class name and count
+    above `per_class` crops spread over the class folder."""
+    out_dir = Path(out_dir)
+    width = per_class * tile[0]
+    parts = []
+    for name in classes:
+        files = sorted((out_dir / name).glob("*.png"))
+        header = np.full((HEADER_H, width, 3), (70, 50, 30), np.uint8)
+        _put_label(header, f"{name}  ({len(files)} crops)", (4, HEADER_H - 7), 0.5)
+        crops = [cv2.imread(str(p), cv2.IMREAD_COLOR) for p in _spread(files, per_class)]
+        row = np.full((tile[1], width, 3), BG, np.uint8)
+        if crops:
+            sheet = contact_sheet(crops, None, per_class, tile)
+            row[:, :sheet.shape[1]] = sheet
+        parts += [header, row]
+    path = out_dir / "preview.png"
+    atomic_imwrite(path, np.vstack(parts))
+    return path

@@ -1,0 +1,193 @@
+"""Image operations behind the sign-crop dataset: proposal-like crops, colour regions, sprites.
+
+Boxes are (x, y, w, h) in image pixels unless a name says xyxy. Images are uint8 BGR.
+"""
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+
+from signlane.world.art import DISTRACTOR_KINDS, draw_distractor, draw_sign, random_style
+from signlane.world.render import Sample
+
+Box = tuple[int, int, int, int]
+
+SIGN_MIN_PX = 12  # smaller faces carry no readable symbol
+MAX_OCCLUDED = 0.5
+MAX_TRUNCATED = 0.5  # a sign mostly outside the frame is not a fair example of its class
+UNKNOWN_MIN_PX = 10
+PAD_MAX = 0.25  # crops look like imperfect proposals: 0-25 % padding per side ...
+SHIFT_MAX = 0.10  # ... and the box centre off by up to 10 % of its size
+SIGN_IOU = 0.3  # an unknown candidate this close to a sign would be a mislabelled sign crop
+SPRITE_PX = (12, 64)  # sprite face size range (log-uniform), as signs appear at 640x480
+# HSV thresholds of sign paint (OpenCV hue 0..180), the same regions a colour proposal stage finds
+RED_LO = ((0, 70, 50), (10, 255, 255))
+RED_HI = ((170, 70, 50), (180, 255, 255))
+BLUE = ((100, 150, 0), (140, 255, 255))
+
+
+def jitter_box(box: Box, rng: np.random.Generator) -> tuple[float, float, float, float]:
+    """An imperfect proposal around `box`: each side padded by 0-PAD_MAX of the box size, then
+    shifted by up to SHIFT_MAX; returns float xyxy (may leave the image)."""
+    x, y, w, h = box
+    pl, pt, pr, pb = rng.uniform(0, PAD_MAX, 4)
+    dx, dy = rng.uniform(-SHIFT_MAX, SHIFT_MAX, 2)
+    return (x - pl * w + dx * w, y - pt * h + dy * h, x + w + pr * w + dx * w, y + h + pb * h + dy * h)
+
+
+def crop_resize(image: np.ndarray, xyxy: tuple[float, float, float, float], size: int) -> np.ndarray:
+    """Crop float xyxy from uint8 (H, W, 3) BGR `image` (edge pixels repeated where the box
+    leaves the image) and resize to uint8 (size, size, 3) BGR."""
+    x0, y0, x1, y1 = (int(round(v)) for v in xyxy)
+    x1, y1 = max(x1, x0 + 1), max(y1, y0 + 1)
+    h, w = image.shape[:2]
+    pad = max(0, -x0, -y0, x1 - w, y1 - h)
+    if pad:
+        image = cv2.copyMakeBorder(image, pad, pad, pad, pad, cv2.BORDER_REPLICATE)
+        x0, y0, x1, y1 = x0 + pad, y0 + pad, x1 + pad, y1 + pad
+    roi = image[y0:y1, x0:x1]
+    interp = cv2.INTER_AREA if roi.shape[0] > size and roi.shape[1] > size else cv2.INTER_LINEAR
+    return cv2.resize(roi, (size, size), interpolation=interp)
+
+
+def iou(a: Box, b: Box) -> float:
+    """Intersection over union of two (x, y, w, h) boxes."""
+    ix = max(0, min(a[0] + a[2], b[0] + b[2]) - max(a[0], b[0]))
+    iy = max(0, min(a[1] + a[3], b[1] + b[3]) - max(a[1], b[1]))
+    inter = ix * iy
+    union = a[2] * a[3] + b[2] * b[3] - inter
+    return inter / union if union > 0 else 0.0
+
+
+def covers_sign(box: Box, signs: list[Box]) -> bool:
+    """True when `box` is (a large part of) a sign: IoU >= SIGN_IOU, or half of either box is
+    the other (a fragment such as the red ring, or a big box around a small sign)."""
+    for s in signs:
+        ix = max(0, min(box[0] + box[2], s[0] + s[2]) - max(box[0], s[0]))
+        iy = max(0, min(box[1] + box[3], s[1] + s[3]) - max(box[1], s[1]))
+        inter = ix * iy
+        if iou(box, s) >= SIGN_IOU or inter >= 0.5 * min(box[2] * box[3], s[2] * s[3]):
+            return True
+    return False
+
+
+def colour_regions(image: np.ndarray, min_px: int = UNKNOWN_MIN_PX) -> list[Box]:
+    """Boxes of connected red or blue regions (HSV thresholds above) in uint8 (H, W, 3) BGR
+    `image`, at least `min_px` on each side, in a stable order (top to bottom, left to right)."""
+    hsv = cv2.cvtColor(image, cv2.COLOR_BGR2HSV)
+    red = cv2.inRange(hsv, *RED_LO) | cv2.inRange(hsv, *RED_HI)
+    boxes = []
+    for mask in (red, cv2.inRange(hsv, *BLUE)):
+        # closing joins a sign's ring across its white inside so one region = one object
+        mask = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, np.ones((3, 3), np.uint8))
+        # outer contours = 8-connected regions, holes ignored; ~50x faster than labelling them
+        contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
+        for x, y, w, h in map(cv2.boundingRect, contours):
+            if min(w, h) >= min_px and max(w, h) <= 4 * min(w, h):
+                boxes.append((int(x), int(y), int(w), int(h)))
+    return sorted(boxes, key=lambda b: (b[1], b[0]))
+
+
+def background_box(rng: np.random.Generator, shape: tuple[int, ...], avoid: list[Box],
+                   side: tuple[int, int] = (16, 96), tries: int = 10) -> Box | None:
+    """A random square box inside an image of `shape` that touches none of `avoid`."""
+    h, w = shape[:2]
+    for _ in range(tries):
+        hi = min(side[1], h, w)
+        s = int(rng.integers(min(side[0], hi), hi + 1))
+        b = (int(rng.integers(0, w - s + 1)), int(rng.integers(0, h - s + 1)), s, s)
+        if all(iou(b, a) == 0 and not _touches(b, a) for a in avoid):
+            return b
+    return None
+
+
+def _touches(a: Box, b: Box) -> bool:
+    return a[0] < b[0] + b[2] and b[0] < a[0] + a[2] and a[1] < b[1] + b[3] and b[1] < a[1] + a[3]
+
+
+def usable_sign(sign) -> bool:
+    """A ground-truth SignTruth big and visible enough to be an example of its class."""
+    return min(sign.box[2], sign.box[3]) >= SIGN_MIN_PX and sign.occluded <= MAX_OCCLUDED \
+        and sign.truncated <= MAX_TRUNCATED
+
+
+def unknown_candidates(sample: Sample, rng: np.random.Generator) -> list[Box]:
+    """Unknown-class boxes of a frame, interleaved by source (distractors, colour regions,
+    background) so a small per-frame quota still sees every kind; none covers a sign."""
+    signs = [s.box for s in sample.truth.signs]
+    distractors = [b for _, b in sample.truth.distractors
+                   if min(b[2], b[3]) >= UNKNOWN_MIN_PX and not covers_sign(b, signs)]
+    colour = [b for b in colour_regions(sample.image)
+              if not covers_sign(b, signs) and all(iou(b, d) < 0.5 for d in distractors)]
+    bg = background_box(rng, sample.image.shape, signs)
+    sources = [list(rng.permutation(len(distractors))), list(rng.permutation(len(colour))), [0] if bg else []]
+    lists = [distractors, colour, [bg]]
+    out: list[Box] = []
+    while any(sources):
+        for k, order in enumerate(sources):
+            if order:
+                out.append(lists[k][int(order.pop(0))])
+    return out
+
+
+def frame_crops(sample: Sample, rng: np.random.Generator, unknown_quota: int,
+                size: int) -> list[tuple[str, np.ndarray]]:
+    """(label, uint8 (size, size, 3) BGR crop) for the usable signs of a frame, then up to
+    `unknown_quota` unknown crops."""
+    out = [(s.label, crop_resize(sample.image, jitter_box(s.box, rng), size))
+           for s in sample.truth.signs if usable_sign(s)]
+    for box in unknown_candidates(sample, rng)[:unknown_quota]:
+        out.append(("unknown", crop_resize(sample.image, jitter_box(box, rng), size)))
+    return out
+
+
+def _perspective(sprite: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Warp a uint8 (s, w, 4) BGRA sprite as seen slightly from the side and tilted; returns a
+    BGRA canvas with a margin of transparent pixels around it."""
+    h, w = sprite.shape[:2]
+    # repeat the edge colour under alpha 0 so interpolation brings in no black fringe
+    sprite = cv2.copyMakeBorder(sprite, 2, 2, 2, 2, cv2.BORDER_REPLICATE)
+    sprite[:2, :, 3] = sprite[-2:, :, 3] = sprite[:, :2, 3] = sprite[:, -2:, 3] = 0
+    m = int(math.ceil(0.35 * max(h, w)))
+    src = np.float32([[2, 2], [w + 2, 2], [w + 2, h + 2], [2, h + 2]])
+    a = math.radians(rng.uniform(-8, 8))
+    rot = np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
+    c = np.array([w / 2, h / 2])
+    dst = (src - 2 - c) @ rot.T + c + m + rng.uniform(-0.12, 0.12, (4, 2)) * np.array([w, h])
+    M = cv2.getPerspectiveTransform(src, dst.astype(np.float32))
+    return cv2.warpPerspective(sprite, M, (w + 2 * m, h + 2 * m), flags=cv2.INTER_LINEAR,
+                               borderMode=cv2.BORDER_REPLICATE)
+
+
+def _sprite_for(name: str, size: int, rng: np.random.Generator) -> np.ndarray:
+    if name == "unknown":
+        return draw_distractor(DISTRACTOR_KINDS[int(rng.integers(len(DISTRACTOR_KINDS)))], size, rng)
+    return draw_sign(name, size, random_style(rng, float(rng.uniform(0.2, 1.0))), rng)
+
+
+def sprite_crop(name: str, rng: np.random.Generator, background: Sample, size: int) -> np.ndarray:
+    """A crop of class `name` rendered from the sprite art (a distractor for "unknown") at a
+    random scale and viewpoint on a patch of `background`'s image, lit, blurred and noised to
+    match the rendered frames; uint8 (size, size, 3) BGR."""
+    bg_img = background.image
+    signs = [s.box for s in background.truth.signs]
+    if name == "unknown" and rng.random() < 0.4:  # plain scenery is an unknown proposal too
+        box = background_box(rng, bg_img.shape, signs) or (0, 0, 32, 32)
+        return crop_resize(bg_img, jitter_box(box, rng), size)
+    px = int(round(math.exp(rng.uniform(math.log(SPRITE_PX[0]), math.log(SPRITE_PX[1])))))
+    warped = _perspective(_sprite_for(name, px, rng), rng)
+    ch, cw = warped.shape[:2]
+    spot = background_box(rng, bg_img.shape, signs, side=(max(ch, cw), max(ch, cw))) or (0, 0, cw, ch)
+    patch = bg_img[spot[1]:spot[1] + ch, spot[0]:spot[0] + cw].astype(np.float32)
+    alpha = warped[:, :, 3:4].astype(np.float32) / 255.0
+    colour = warped[:, :, :3].astype(np.float32) * rng.uniform(0.6, 1.15)  # scene lighting
+    img = patch * (1 - alpha) + colour * alpha
+    sigma = rng.uniform(0, 1.0) * px / 32  # blur in proportion to size: the renderer's look
+    if sigma > 0.3:
+        img = cv2.GaussianBlur(img, (0, 0), sigma)
+    img = np.clip(img + rng.normal(0, rng.uniform(0, 6), img.shape), 0, 255).astype(np.uint8)
+    ys, xs = np.nonzero(warped[:, :, 3] > 127)
+    face = (int(xs.min()), int(ys.min()), int(np.ptp(xs)) + 1, int(np.ptp(ys)) + 1) if len(xs) else (0, 0, cw, ch)
+    return crop_resize(img, jitter_box(face, rng), size)

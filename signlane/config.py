@@ -1,0 +1,118 @@
+"""One nested dataclass config: defaults defined once, a TOML file and `--set a.b=v` override it.
+
+The resolved config is saved beside outputs (`Config.to_dict()` as JSON) so a run can be
+repeated exactly.
+"""
+from __future__ import annotations
+
+import tomllib
+from dataclasses import asdict, dataclass, field, fields, is_dataclass, replace
+from pathlib import Path
+from typing import Any
+
+from signlane.camera import Camera
+
+
+@dataclass(frozen=True)
+class CameraConfig:
+    """The camera the images come from; size is taken from each image."""
+
+    hfov_deg: float = 90.0
+    height_m: float = 1.3
+    pitch_deg: float = 10.0
+    roll_deg: float = 0.0
+
+    def camera(self, width: int = 320, height: int = 240) -> Camera:
+        return Camera(width, height, self.hfov_deg, self.height_m, self.pitch_deg, self.roll_deg)
+
+
+@dataclass(frozen=True)
+class LanesConfig:
+    method: str = "sliding-window"
+    variant: str = "robust"  # robust | published
+
+
+@dataclass(frozen=True)
+class SignsConfig:
+    enabled: bool = True
+    variant: str = "robust"  # proposal rules: robust | published
+
+
+@dataclass(frozen=True)
+class ControlConfig:
+    controller: str = "pure-pursuit"  # pure-pursuit | s1-proportional | s3-atan | s3-smoothed
+    cruise: float = 0.5  # throttle while the lane is seen
+
+
+@dataclass(frozen=True)
+class Config:
+    camera: CameraConfig = field(default_factory=CameraConfig)
+    lanes: LanesConfig = field(default_factory=LanesConfig)
+    signs: SignsConfig = field(default_factory=SignsConfig)
+    control: ControlConfig = field(default_factory=ControlConfig)
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    @classmethod
+    def load(cls, path: str | Path | None = None, overrides: list[str] | None = None) -> "Config":
+        """Defaults, then the TOML file's tables, then `section.key=value` overrides."""
+        cfg = cls()
+        if path is not None:
+            p = Path(path)
+            try:
+                data = tomllib.loads(p.read_text())
+            except OSError as e:
+                raise ValueError(f"{p}: cannot read config ({e.strerror})") from None
+            except tomllib.TOMLDecodeError as e:
+                raise ValueError(f"{p}: invalid TOML ({e})") from None
+            cfg = _merge(cfg, data, str(p))
+        for item in overrides or []:
+            key, sep, value = item.partition("=")
+            if not sep:
+                raise ValueError(f"--set {item!r}: expected section.key=value")
+            cfg = _merge(cfg, _nested(key.strip().split("."), _parse(value.strip())), f"--set {item}")
+        return cfg
+
+
+def _nested(keys: list[str], value: Any) -> dict:
+    return {keys[0]: _nested(keys[1:], value)} if len(keys) > 1 else {keys[0]: value}
+
+
+def _parse(text: str) -> Any:
+    try:
+        return tomllib.loads(f"v = {text}")["v"]
+    except tomllib.TOMLDecodeError:
+        return text  # bare words are strings
+
+
+def _merge(obj: Any, data: dict, where: str) -> Any:
+    known = {f.name: f for f in fields(obj)}
+    changes = {}
+    for key, value in data.items():
+        name = key.replace("-", "_")
+        if name not in known:
+            raise ValueError(f"{where}: unknown setting {key!r} (known: {', '.join(sorted(known))})")
+        current = getattr(obj, name)
+        if is_dataclass(current):
+            if not isinstance(value, dict):
+                raise ValueError(f"{where}: {key!r} is a section, not a value")
+            changes[name] = _merge(current, value, where)
+        else:
+            changes[name] = _coerce(current, value, key, where)
+    return replace(obj, **changes)
+
+
+def _coerce(current: Any, value: Any, key: str, where: str) -> Any:
+    try:
+        if isinstance(current, bool):
+            if isinstance(value, bool):
+                return value
+            raise ValueError
+        if isinstance(current, (int, float)) and not isinstance(value, bool):
+            return type(current)(value)
+        if isinstance(current, str):
+            return str(value)
+    except (TypeError, ValueError):
+        pass
+    raise ValueError(f"{where}: {key} = {value!r} is not a {type(current).__name__}")

@@ -1,0 +1,170 @@
+"""Steering from a LaneEstimate: the source controllers and a pure-pursuit default.
+
+Each controller is a small stateful class with `step(lane, speed) -> steering` (in [-1, 1],
+positive right) and `reset()`. `make_controller(name)` builds one by name:
+
+- `s1-proportional`: S1's rule, steering = 0.01 * (lane centre - image centre) in S1's
+  bird's-eye pixels, measured here in metres and converted with that view's scale.
+- `s3-atan`: S3's rule, angle = atan(x_offset / y_offset) from the lane lines in the image,
+  steering = angle / 45 deg.
+- `s3-smoothed`: S3's rule with its per-frame rate limit (5 deg with two lines, 3 deg with one)
+  and the +-35 deg clamp.
+- `pure-pursuit` (default): a lookahead point on the lane centre rebuilt from offset, heading
+  and curvature; bicycle-model steering towards it, scaled by the 25 deg maximum wheel angle.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from signlane.camera import Camera
+from signlane.types import LaneEstimate
+
+MAX_WHEEL_DEG = 25.0  # VIA scales steering 1.0 to this wheel angle
+DEFAULT_LANE_WIDTH_M = 3.2
+
+
+def _clip(v: float) -> float:
+    return float(np.clip(v, -1.0, 1.0))
+
+
+def lane_width(lane: LaneEstimate) -> float:
+    return lane.lane_width_m if lane.lane_width_m > 0 else DEFAULT_LANE_WIDTH_M
+
+
+def centre_x_at(lane: LaneEstimate, y_m: float) -> float:
+    """Lateral position (m, + = right of the car) of the lane centre y_m ahead, rebuilt from
+    offset, heading and curvature (x = c + b*y + a*y^2)."""
+    c = -lane.offset * lane_width(lane)
+    b = -math.tan(lane.heading)
+    a = lane.curvature / 2.0 * (1 + b * b) ** 1.5
+    return c + b * y_m + a * y_m * y_m
+
+
+class PurePursuit:
+    """Steer the bicycle model towards the lane centre `lookahead` metres ahead."""
+
+    def __init__(self, wheelbase_m: float = 1.8, lookahead_m: float = 5.0, lookahead_per_mps: float = 0.5,
+                 max_wheel_deg: float = MAX_WHEEL_DEG):
+        self.wheelbase = wheelbase_m
+        self.lookahead = lookahead_m
+        self.per_mps = lookahead_per_mps
+        self.max_wheel = math.radians(max_wheel_deg)
+        self.last = 0.0
+
+    def step(self, lane: LaneEstimate, speed: float = 0.0) -> float:
+        if not lane.found:
+            self.last *= 0.8  # drift back to straight while the lane is lost
+            return self.last
+        ld = self.lookahead + self.per_mps * max(speed, 0.0)
+        x = centre_x_at(lane, ld)
+        dist2 = x * x + ld * ld
+        kappa = 2.0 * x / dist2  # circle through the car and the target point
+        wheel = math.atan(self.wheelbase * kappa)
+        self.last = _clip(wheel / self.max_wheel)
+        return self.last
+
+    def reset(self) -> None:
+        self.last = 0.0
+
+
+class S1Proportional:
+    """S1: steering = 0.01 * (centre - image centre) in S1's bird's-eye pixels, at its scan row."""
+
+    GAIN_PER_PX = 0.01
+
+    def __init__(self, camera: Camera | None = None):
+        self.camera = camera or Camera(640, 480)
+        self.px_per_m, self.scan_y_m = _s1_scale(self.camera)
+
+    def step(self, lane: LaneEstimate, speed: float = 0.0) -> float:
+        if not lane.found:
+            return 0.0
+        return _clip(self.GAIN_PER_PX * self.px_per_m * centre_x_at(lane, self.scan_y_m))
+
+    def reset(self) -> None:
+        pass
+
+
+def _s1_scale(camera: Camera) -> tuple[float, float]:
+    """S1's bird's-eye maps the bottom image row to W/4 pixels: its px/m there, and the ground
+    distance of its scan row (0.9 of the view height, near the bottom)."""
+    w, h = camera.width, camera.height
+    ends = camera.image_to_ground(np.array([[0.0, h - 1.0], [w - 1.0, h - 1.0]]))
+    width_m = float(np.hypot(*(ends[1] - ends[0]))) if np.all(np.isfinite(ends)) else 3.0
+    return (w / 4.0) / max(width_m, 1e-3), float(np.nanmean(ends[:, 1])) if np.all(np.isfinite(ends)) else 2.0
+
+
+class S3Atan:
+    """S3: angle = atan(x_offset / y_offset) in image pixels; steering = angle / 45 deg."""
+
+    def __init__(self, camera: Camera | None = None):
+        self.camera = camera
+        self.last_lines = 0
+
+    def angle_deg(self, lane: LaneEstimate, width: int, height: int) -> float | None:
+        tops = []
+        for line in (lane.left, lane.right):
+            if line is not None and len(line) >= 2:
+                tops.append(line)
+        self.last_lines = len(tops)
+        if not lane.found or not tops:
+            return None
+        if len(tops) == 2:
+            x_top = [float(np.interp(height / 2, l[::-1, 1], l[::-1, 0])) for l in tops]
+            x_off, y_off = np.mean(x_top) - width / 2, height / 2
+        else:
+            line = tops[0]
+            x_off, y_off = float(line[-1, 0] - line[0, 0]), float(line[0, 1] - line[-1, 1])
+        return math.degrees(math.atan2(x_off, max(y_off, 1e-6)))
+
+    def step(self, lane: LaneEstimate, speed: float = 0.0) -> float:
+        cam = self.camera or Camera()
+        a = self.angle_deg(lane, cam.width, cam.height)
+        return 0.0 if a is None else _clip(a / 45.0)
+
+    def reset(self) -> None:
+        self.last_lines = 0
+
+
+class S3Smoothed(S3Atan):
+    """S3 with its rate limit: at most 5 deg change a frame with two lines, 3 with one; +-35 deg."""
+
+    def __init__(self, camera: Camera | None = None):
+        super().__init__(camera)
+        self.angle = 0.0
+
+    def step(self, lane: LaneEstimate, speed: float = 0.0) -> float:
+        cam = self.camera or Camera()
+        a = self.angle_deg(lane, cam.width, cam.height)
+        if a is not None:
+            limit = 5.0 if self.last_lines == 2 else 3.0
+            self.angle = float(np.clip(self.angle + np.clip(a - self.angle, -limit, limit), -35.0, 35.0))
+        return _clip(self.angle / 45.0)
+
+    def reset(self) -> None:
+        super().reset()
+        self.angle = 0.0
+
+
+CONTROLLERS = {"pure-pursuit": PurePursuit, "s1-proportional": S1Proportional, "s3-atan": S3Atan,
+               "s3-smoothed": S3Smoothed}
+
+
+def make_controller(name: str = "pure-pursuit", camera: Camera | None = None):
+    if name not in CONTROLLERS:
+        raise ValueError(f"unknown controller {name!r}; choose one of {', '.join(CONTROLLERS)}")
+    cls = CONTROLLERS[name]
+    return cls() if cls is PurePursuit else cls(camera)
+
+
+@dataclass(frozen=True)
+class ThrottlePolicy:
+    """Until the sign-aware speed planner exists: cruise while the lane is seen, else coast."""
+
+    cruise: float = 0.5
+
+    def throttle(self, lane: LaneEstimate) -> tuple[float, str]:
+        return (self.cruise, "cruise") if lane.found else (0.0, "lost")

@@ -1,0 +1,124 @@
+"""Lane geometry shared by every lane method: boundary fitting and LaneEstimate assembly.
+
+Methods find boundary points (in image or bird's-eye pixels), convert them to ground metres
+(x right, y forward) and call `fit_boundary` and `estimate_from_fits`: the offset, heading,
+curvature and image polylines are then computed one way for all methods.
+
+A boundary is the polynomial x(y) = a*y^2 + b*y + c in ground metres (numpy.polyfit order).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from signlane.camera import BirdsEye, Camera
+from signlane.types import LaneEstimate
+
+DEFAULT_LANE_WIDTH_M = 3.2
+CURVATURE_AT_M = 8.0  # curvature is reported at this distance ahead (the middle of the usual view)
+POLYLINE_STEP_M = 0.5
+
+
+@dataclass(frozen=True)
+class Boundary:
+    """A fitted boundary: x(y) coefficients (highest power first) valid over y_range metres."""
+
+    coeffs: np.ndarray
+    y_range: tuple[float, float]
+    support: int = 0  # number of points behind the fit
+
+    def x_at(self, y) -> np.ndarray:
+        return np.polyval(self.coeffs, y)
+
+
+def fit_boundary(points_m: np.ndarray, order: int = 2, weights: np.ndarray | None = None,
+                 min_points: int = 3, min_span_m: float = 1.0) -> Boundary | None:
+    """Least-squares fit of x(y) to ground points (N,2) metres; None when too few or too short.
+
+    The order drops to 1 when the points span too little distance for a stable quadratic.
+    """
+    pts = np.asarray(points_m, dtype=np.float64).reshape(-1, 2)
+    pts = pts[np.all(np.isfinite(pts), axis=1)]
+    if len(pts) < min_points:
+        return None
+    y0, y1 = float(pts[:, 1].min()), float(pts[:, 1].max())
+    if y1 - y0 < min_span_m:
+        return None
+    if y1 - y0 < 4.0 or len(pts) < 6:
+        order = min(order, 1)
+    w = None if weights is None else np.sqrt(np.asarray(weights, dtype=np.float64)[: len(pts)])
+    coeffs = np.polyfit(pts[:, 1], pts[:, 0], order, w=w)
+    if len(coeffs) < 3:
+        coeffs = np.concatenate([np.zeros(3 - len(coeffs)), coeffs])
+    return Boundary(coeffs, (y0, y1), len(pts))
+
+
+def shifted(boundary: Boundary, dx_m: float) -> Boundary:
+    """The same curve moved sideways by dx_m (right positive): the lane-width fallback."""
+    c = boundary.coeffs.copy()
+    c[-1] += dx_m
+    return Boundary(c, boundary.y_range, 0)
+
+
+def curvature_of(coeffs: np.ndarray, y: float) -> float:
+    """Signed curvature (1/m, + = bends right) of x(y) at y."""
+    a, b = coeffs[-3], coeffs[-2]
+    slope = 2 * a * y + b
+    return float(2 * a / (1 + slope * slope) ** 1.5)
+
+
+def estimate_from_fits(method: str, camera: Camera, left: Boundary | None, right: Boundary | None,
+                       lane_width_m: float = DEFAULT_LANE_WIDTH_M, confidence: float | None = None,
+                       debug_mask: np.ndarray | None = None) -> LaneEstimate:
+    """LaneEstimate from fitted boundaries; a missing side is placed one lane width away."""
+    if left is None and right is None:
+        return LaneEstimate(method, False, confidence=0.0, debug_mask=debug_mask)
+    if left is None:
+        left = shifted(right, -lane_width_m)
+    if right is None:
+        right = shifted(left, lane_width_m)
+    centre = (left.coeffs + right.coeffs) / 2.0
+    width = float(right.x_at(0.0) - left.x_at(0.0))
+    if not 0.3 * lane_width_m < width < 3.0 * lane_width_m:
+        width = lane_width_m  # implausible measured width: use the nominal one for the fraction
+    offset = -float(np.polyval(centre, 0.0)) / width
+    heading = -math.atan(float(centre[-2]))
+    y_lo = max(0.5, min(left.y_range[0], right.y_range[0]))
+    y_hi = max(left.y_range[1], right.y_range[1])
+    curvature = curvature_of(centre, float(np.clip(CURVATURE_AT_M, y_lo, y_hi)))
+    if confidence is None:
+        confidence = 1.0 if (left.support and right.support) else 0.5
+    return LaneEstimate(method, True, offset=offset, heading=heading, curvature=curvature,
+                        confidence=float(confidence), left=boundary_polyline(camera, left, y_lo, y_hi),
+                        right=boundary_polyline(camera, right, y_lo, y_hi), debug_mask=debug_mask,
+                        lane_width_m=width)
+
+
+def boundary_polyline(camera: Camera, b: Boundary, y_lo: float, y_hi: float) -> np.ndarray:
+    """Image pixels (N,2) of a boundary between y_lo and y_hi metres ahead, inside the frame."""
+    ys = np.arange(y_lo, y_hi + 1e-9, POLYLINE_STEP_M)
+    if len(ys) < 2:
+        ys = np.array([y_lo, y_hi])
+    pix = camera.ground_to_image(np.column_stack([b.x_at(ys), ys]))
+    keep = (pix[:, 0] >= 0) & (pix[:, 0] <= camera.width - 1) & (pix[:, 1] >= 0) & (pix[:, 1] <= camera.height - 1)
+    return pix[keep].astype(np.float32)
+
+
+def bev_points_to_ground(bev: BirdsEye, uv: np.ndarray) -> np.ndarray:
+    """Bird's-eye pixels (N,2) -> ground metres (N,2)."""
+    return bev.bev_to_ground(uv)
+
+
+def image_points_to_ground(camera: Camera, pix: np.ndarray) -> np.ndarray:
+    """Image pixels (N,2) -> ground metres (N,2); pixels at or above the horizon are dropped."""
+    g = camera.image_to_ground(pix)
+    return g[np.all(np.isfinite(g), axis=1)]
+
+
+def camera_for(image: np.ndarray, camera: Camera | None) -> Camera:
+    """The given camera resized to the image, or the default camera at the image's size."""
+    h, w = image.shape[:2]
+    cam = camera or Camera()
+    return cam if (cam.width, cam.height) == (w, h) else cam.with_size(w, h)

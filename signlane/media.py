@@ -1,0 +1,122 @@
+"""Reading images and videos from users' files, with one clear error per bad input.
+
+Every image comes out as uint8 (H, W, 3) BGR whatever it was on disk (grayscale, RGBA,
+16-bit); problems raise `MediaError` whose message names the file and what is wrong.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Iterator
+
+import cv2
+import numpy as np
+
+# FFmpeg's own messages ("moov atom not found") would add noise lines beside ours
+os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
+
+IMAGE_EXT = {".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".webp"}
+VIDEO_EXT = {".mp4", ".avi", ".mov", ".mkv", ".m4v", ".webm", ".mpg", ".mpeg"}
+MIN_SIDE = 16
+
+
+class MediaError(Exception):
+    """A user's file that cannot be used: str(e) is one line naming the file."""
+
+
+@dataclass(frozen=True)
+class Source:
+    path: Path
+    kind: str  # image | video
+
+
+def expand(paths: list[str | Path]) -> tuple[list[Source], list[str]]:
+    """Files and folders -> sources (folders: their images and videos, sorted) and error lines."""
+    sources, errors = [], []
+    for raw in paths:
+        p = Path(raw)
+        if p.is_dir():
+            found = [q for q in sorted(p.iterdir()) if q.is_file() and q.suffix.lower() in IMAGE_EXT | VIDEO_EXT]
+            if not found:
+                errors.append(f"{p}: folder has no images or videos ({', '.join(sorted(IMAGE_EXT | VIDEO_EXT))})")
+            sources += [Source(q, _kind(q)) for q in found]
+        elif p.is_file():
+            sources.append(Source(p, _kind(p)))
+        else:
+            errors.append(f"{p}: no such file or folder")
+    return sources, errors
+
+
+def _kind(p: Path) -> str:
+    return "video" if p.suffix.lower() in VIDEO_EXT else "image"
+
+
+def to_bgr8(img: np.ndarray, name: str) -> np.ndarray:
+    """Any decoded image -> uint8 (H, W, 3) BGR."""
+    if img.dtype == np.uint16:
+        img = (img >> 8).astype(np.uint8)
+    elif img.dtype in (np.float32, np.float64):
+        img = np.clip(img * (255.0 if img.max() <= 1.0 else 1.0), 0, 255).astype(np.uint8)
+    elif img.dtype != np.uint8:
+        raise MediaError(f"{name}: unsupported pixel type {img.dtype}")
+    if img.ndim == 2:
+        img = cv2.cvtColor(img, cv2.COLOR_GRAY2BGR)
+    elif img.ndim == 3 and img.shape[2] == 4:
+        img = cv2.cvtColor(img, cv2.COLOR_BGRA2BGR)
+    elif img.ndim == 3 and img.shape[2] == 1:
+        img = cv2.cvtColor(img[:, :, 0], cv2.COLOR_GRAY2BGR)
+    elif not (img.ndim == 3 and img.shape[2] == 3):
+        raise MediaError(f"{name}: unsupported image shape {img.shape}")
+    h, w = img.shape[:2]
+    if min(h, w) < MIN_SIDE:
+        raise MediaError(f"{name}: image is {w}x{h}; need at least {MIN_SIDE}x{MIN_SIDE}")
+    return np.ascontiguousarray(img)
+
+
+def read_image(path: str | Path) -> np.ndarray:
+    """Read an image file as uint8 BGR; truncated JPEGs and undecodable files raise MediaError."""
+    p = Path(path)
+    try:
+        data = p.read_bytes()
+    except OSError as e:
+        raise MediaError(f"{p}: cannot read ({e.strerror})") from None
+    if not data:
+        raise MediaError(f"{p}: empty file")
+    if data[:2] == b"\xff\xd8" and b"\xff\xd9" not in data[-64:]:
+        # libjpeg may decode a truncated file, filling the rest with grey; refuse it instead
+        raise MediaError(f"{p}: truncated JPEG (no end-of-image marker)")
+    img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+    if img is None:
+        raise MediaError(f"{p}: not an image OpenCV can decode (corrupt or unsupported format)")
+    return to_bgr8(img, str(p))
+
+
+def iter_video(path: str | Path) -> Iterator[np.ndarray]:
+    """Frames of a video as uint8 BGR; raises MediaError if it cannot be opened or has no frames."""
+    p = Path(path)
+    cap = cv2.VideoCapture(str(p))
+    if not cap.isOpened():
+        raise MediaError(f"{p}: cannot open video (corrupt, empty or unsupported codec)")
+    try:
+        n = 0
+        while True:
+            ok, frame = cap.read()
+            if not ok:
+                break
+            n += 1
+            yield to_bgr8(frame, f"{p} frame {n - 1}")
+        if n == 0:
+            raise MediaError(f"{p}: video has no readable frames")
+    finally:
+        cap.release()
+
+
+def video_info(path: str | Path) -> tuple[float, int]:
+    """(fps, frame count or 0 if unknown) of a video."""
+    cap = cv2.VideoCapture(str(path))
+    try:
+        fps = cap.get(cv2.CAP_PROP_FPS) or 20.0
+        return (fps if 1.0 <= fps <= 240.0 else 20.0), int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
+    finally:
+        cap.release()
