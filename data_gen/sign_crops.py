@@ -9,6 +9,7 @@ import math
 import cv2
 import numpy as np
 
+from signlane.signs.proposals import propose
 from signlane.world.art import DISTRACTOR_KINDS, draw_distractor, draw_sign, random_style
 from signlane.world.render import Sample
 
@@ -21,7 +22,10 @@ UNKNOWN_MIN_PX = 10
 PAD_MAX = 0.25  # crops look like imperfect proposals: 0-25 % padding per side ...
 SHIFT_MAX = 0.10  # ... and the box centre off by up to 10 % of its size
 SIGN_IOU = 0.3  # an unknown candidate this close to a sign would be a mislabelled sign crop
-SPRITE_PX = (12, 64)  # sprite face size range (log-uniform), as signs appear at 640x480
+PROPOSAL_IOU = 0.5  # a proposal matching a sign this well takes its class
+SPRITE_PX = (12, 120)  # sprite face size range (log-uniform): far signs to ones close to the camera
+YAW_MAX_DEG = 60.0  # signs seen this far off their axis still count
+OCCLUDE_PROB = 0.15
 # HSV thresholds of sign paint (OpenCV hue 0..180), the same regions a colour proposal stage finds
 RED_LO = ((0, 70, 50), (10, 255, 255))
 RED_HI = ((170, 70, 50), (180, 255, 255))
@@ -132,33 +136,83 @@ def unknown_candidates(sample: Sample, rng: np.random.Generator) -> list[Box]:
     return out
 
 
+def proposal_labels(sample: Sample) -> list[tuple[str, Box]]:
+    """The colour-mask proposals of a frame, each labelled by its overlap with the ground truth:
+    IoU >= PROPOSAL_IOU with a usable sign takes that sign's class, no overlap with any sign is
+    'unknown'; a proposal that touches a sign without matching it (a fragment, or a sign too
+    hidden to be an example) is left out rather than given a wrong label."""
+    out = []
+    for prop in propose(sample.image):
+        best = max(sample.truth.signs, key=lambda s: iou(prop.box, s.box), default=None)
+        if best is not None and iou(prop.box, best.box) >= PROPOSAL_IOU:
+            if usable_sign(best):
+                out.append((best.label, prop.box))
+        elif not covers_sign(prop.box, [s.box for s in sample.truth.signs]):
+            out.append(("unknown", prop.box))
+    return out
+
+
 def frame_crops(sample: Sample, rng: np.random.Generator, unknown_quota: int,
                 size: int) -> list[tuple[str, np.ndarray]]:
-    """(label, uint8 (size, size, 3) BGR crop) for the usable signs of a frame, then up to
-    `unknown_quota` unknown crops."""
-    out = [(s.label, crop_resize(sample.image, jitter_box(s.box, rng), size))
-           for s in sample.truth.signs if usable_sign(s)]
-    for box in unknown_candidates(sample, rng)[:unknown_quota]:
+    """(label, uint8 (size, size, 3) BGR crop): the frame's proposals exactly as the runtime crops
+    them (labelled by ground truth), jittered crops of its usable signs (proposals miss some),
+    then other unknowns up to `unknown_quota` in all."""
+    labelled = proposal_labels(sample)
+    out = [(label, crop_resize(sample.image, (x, y, x + w, y + h), size)) for label, (x, y, w, h) in labelled]
+    out += [(s.label, crop_resize(sample.image, jitter_box(s.box, rng), size))
+            for s in sample.truth.signs if usable_sign(s)]
+    taken = [b for label, b in labelled if label == "unknown"]
+    room = max(0, unknown_quota - len(taken))
+    for box in [b for b in unknown_candidates(sample, rng) if all(iou(b, t) < 0.5 for t in taken)][:room]:
         out.append(("unknown", crop_resize(sample.image, jitter_box(box, rng), size)))
     return out
 
 
 def _perspective(sprite: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """Warp a uint8 (s, w, 4) BGRA sprite as seen slightly from the side and tilted; returns a
-    BGRA canvas with a margin of transparent pixels around it."""
+    """Warp a uint8 (s, w, 4) BGRA sprite as a camera sees a sign standing up to 60 degrees off
+    its axis (foreshortened, the near edge taller), tilted a little; returns a BGRA canvas with a
+    margin of transparent pixels around it."""
     h, w = sprite.shape[:2]
     # repeat the edge colour under alpha 0 so interpolation brings in no black fringe
     sprite = cv2.copyMakeBorder(sprite, 2, 2, 2, 2, cv2.BORDER_REPLICATE)
     sprite[:2, :, 3] = sprite[-2:, :, 3] = sprite[:, :2, 3] = sprite[:, -2:, 3] = 0
     m = int(math.ceil(0.35 * max(h, w)))
     src = np.float32([[2, 2], [w + 2, 2], [w + 2, h + 2], [2, h + 2]])
+    yaw = math.radians(rng.uniform(-YAW_MAX_DEG, YAW_MAX_DEG))
+    squeeze = math.cos(yaw)  # the face's width as seen from the side
+    near = 1.0 + 0.25 * abs(math.sin(yaw))  # the nearer edge looks taller
+    c = np.array([w / 2, h / 2])
+    corners = (src - 2 - c) * np.array([squeeze, 1.0])
+    side = 1 if yaw > 0 else 0  # which vertical edge is nearer
+    for k in ((1, 2) if side else (0, 3)):
+        corners[k, 1] *= near
     a = math.radians(rng.uniform(-8, 8))
     rot = np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
-    c = np.array([w / 2, h / 2])
-    dst = (src - 2 - c) @ rot.T + c + m + rng.uniform(-0.12, 0.12, (4, 2)) * np.array([w, h])
+    dst = corners @ rot.T + c + m + rng.uniform(-0.06, 0.06, (4, 2)) * np.array([w, h])
     M = cv2.getPerspectiveTransform(src, dst.astype(np.float32))
     return cv2.warpPerspective(sprite, M, (w + 2 * m, h + 2 * m), flags=cv2.INTER_LINEAR,
                                borderMode=cv2.BORDER_REPLICATE)
+
+
+def _occlude(img: np.ndarray, face: Box, rng: np.random.Generator) -> None:
+    """Cover up to a third of the face with a branch, pole or another object's colour (in place)."""
+    x, y, w, h = face
+    ow, oh = int(w * rng.uniform(0.15, 0.6)), int(h * rng.uniform(0.15, 0.6))
+    ox = x + (0 if rng.random() < 0.5 else w - ow)
+    oy = y + int(rng.uniform(0, max(1, h - oh)))
+    colour = tuple(int(v) for v in rng.integers(20, 200, 3))
+    cv2.rectangle(img, (ox, oy), (ox + ow, oy + oh), colour, -1)
+
+
+def _camera_look(img: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Exposure, colour cast and JPEG of another camera; uint8 BGR in and out."""
+    gain = 2.0 ** rng.normal(0, 0.45)
+    cast = 1.0 + rng.normal(0, 0.08, 3)
+    out = np.clip(img.astype(np.float32) * gain * cast, 0, 255).astype(np.uint8)
+    if rng.random() < 0.4:
+        ok, buf = cv2.imencode(".jpg", out, [cv2.IMWRITE_JPEG_QUALITY, int(rng.integers(15, 90))])
+        out = cv2.imdecode(buf, cv2.IMREAD_COLOR)
+    return out
 
 
 def _sprite_for(name: str, size: int, rng: np.random.Generator) -> np.ndarray:
@@ -187,7 +241,9 @@ def sprite_crop(name: str, rng: np.random.Generator, background: Sample, size: i
     sigma = rng.uniform(0, 1.0) * px / 32  # blur in proportion to size: the renderer's look
     if sigma > 0.3:
         img = cv2.GaussianBlur(img, (0, 0), sigma)
-    img = np.clip(img + rng.normal(0, rng.uniform(0, 6), img.shape), 0, 255).astype(np.uint8)
+    img = np.clip(img + rng.normal(0, rng.uniform(0, 8), img.shape), 0, 255).astype(np.uint8)
     ys, xs = np.nonzero(warped[:, :, 3] > 127)
     face = (int(xs.min()), int(ys.min()), int(np.ptp(xs)) + 1, int(np.ptp(ys)) + 1) if len(xs) else (0, 0, cw, ch)
-    return crop_resize(img, jitter_box(face, rng), size)
+    if rng.random() < OCCLUDE_PROB:
+        _occlude(img, face, rng)
+    return _camera_look(crop_resize(img, jitter_box(face, rng), size), rng)

@@ -123,7 +123,8 @@ def signs_config(n: int, seed: int, crop: int, unknown_fraction: float, frames: 
             "frames": int(frames), "sampler": asdict(sampler), "classes": list(SIGN_CLASSES),
             "targets": class_targets(n, unknown_fraction), "scene_unknown_share": SCENE_UNKNOWN_SHARE,
             "sign_min_px": sc.SIGN_MIN_PX, "max_occluded": sc.MAX_OCCLUDED, "max_truncated": sc.MAX_TRUNCATED,
-            "pad_max": sc.PAD_MAX, "shift_max": sc.SHIFT_MAX, "sprite_px": list(sc.SPRITE_PX)}
+            "pad_max": sc.PAD_MAX, "shift_max": sc.SHIFT_MAX, "sprite_px": list(sc.SPRITE_PX),
+            "proposal_iou": sc.PROPOSAL_IOU, "yaw_max_deg": sc.YAW_MAX_DEG, "occlude_prob": sc.OCCLUDE_PROB}
 
 
 def generate_signs(out: str | Path, n: int, seed: int, crop: int = 48, workers: int = 1, resume: bool = False,
@@ -137,7 +138,8 @@ def generate_signs(out: str | Path, n: int, seed: int, crop: int = 48, workers: 
                          f"{unknown_fraction})")
     out = Path(out)
     frames = max(1, n // 2) if frames is None else int(frames)
-    sampler = SamplerConfig(width=FRAME_SIZE[0], height=FRAME_SIZE[1], effects="mixed", randomise=True)
+    sampler = SamplerConfig(width=FRAME_SIZE[0], height=FRAME_SIZE[1], effects="mixed", randomise=True,
+                            focus="signs")
     config = signs_config(n, seed, crop, unknown_fraction, frames, sampler)
     manifest = prepare_output(out, "signs", config, resume)
     if manifest is None:

@@ -217,11 +217,12 @@ def _add_infer(sub) -> None:
 
 def _run_infer(args) -> int:
     from signlane.infer import run_infer
+    from signlane.onnx_model import ModelError
     cfg = _config(args)
     try:
         summary = run_infer(args.paths, cfg, out=args.out, json_path=args.json_path, save_masks=args.save_masks,
                             progress=args.progress)
-    except ValueError as e:
+    except (ValueError, ModelError) as e:
         raise UserError(str(e)) from None
     print(summary.table(), file=sys.stderr)
     return 1 if summary.failed else 0
@@ -231,7 +232,7 @@ def _run_infer(args) -> int:
 def _add_eval(sub) -> None:
     p = sub.add_parser("eval", help="score lane methods or sign proposals on a seeded synthetic test set",
                        description="Render a seeded synthetic test set and print a score table.")
-    kinds = p.add_subparsers(dest="kind", required=True, metavar="{lanes,proposals}")
+    kinds = p.add_subparsers(dest="kind", required=True, metavar="{lanes,proposals,signs}")
     common = argparse.ArgumentParser(add_help=False)
     common.add_argument("--n", type=_positive, default=500, help="frames (default 500)")
     common.add_argument("--seed", type=int, default=1000, help="test-set seed (default 1000)")
@@ -250,10 +251,25 @@ def _add_eval(sub) -> None:
                                         "false proposals per frame.")
     prop.add_argument("--min-size", type=int, default=20, help="smallest sign side counted, px (default 20)")
     prop.add_argument("--size", type=_size, default=(640, 480), help="frame size WxH (default 640x480)")
+    signs = kinds.add_parser("signs", help="sign classifier accuracy on a crop set",
+                             description="Accuracy, per-class recall and non-sign acceptance of the ONNX sign "
+                                         "classifier on an ImageFolder crop set (make a fresh one with "
+                                         "`signlane gen signs --seed S`).")
+    signs.add_argument("data", type=Path, help="crop folder (<class>/<id>.png)")
+    signs.add_argument("--model", type=Path, help="ONNX model (default: the shipped one)")
+    signs.add_argument("--min-score", type=float, default=0.5, help="score a sign needs to count (default 0.5)")
     p.set_defaults(func=_run_eval)
 
 
 def _run_eval(args) -> int:
+    if args.kind == "signs":
+        from signlane.evaluate import eval_signs
+        from signlane.onnx_model import ModelError
+        try:
+            print(json.dumps(eval_signs(args.data, args.model, args.min_score), indent=1))
+        except (ModelError, ValueError, OSError) as e:
+            raise UserError(str(e)) from None
+        return 0
     variants = ["robust", "published"] if args.variant == "both" else [args.variant]
     if args.kind == "lanes":
         from signlane import lanes
@@ -263,16 +279,131 @@ def _run_eval(args) -> int:
             rows = [eval_lanes(m, args.n, args.seed, args.hard, v, *args.size) for m in methods for v in variants]
         except ValueError as e:
             raise UserError(str(e)) from None
-    else:
-        from signlane.signs.eval_proposals import eval_proposals, format_table, plot_recall as plot_lanes
-        from signlane.evaluate import write_csv
-        rows = [eval_proposals(args.n, args.seed, args.hard, v, args.min_size, *args.size) for v in variants]
-    print(format_table(rows))
+        print(format_table(rows))
+        if args.csv:
+            write_csv(args.csv, rows)
+        if args.plot:
+            plot_lanes(args.plot, rows)
+        return 0
+    from signlane.draw import write_image
+    from signlane.signs import eval_proposals as ep
+    rows = ep.eval_many(args.n, args.seed, args.hard, variants, args.min_size, *args.size, progress=True)
+    print(ep.format_table(rows))
     if args.csv:
-        write_csv(args.csv, rows)
+        ep.write_csv(args.csv, rows)
     if args.plot:
-        plot_lanes(args.plot, rows)
+        write_image(args.plot, ep.plot_recall_by_size(rows))
     return 0
+
+
+# --- train / export / classify --------------------------------------------------------------------
+def _add_scale_out(p) -> None:
+    g = p.add_argument_group("scale-out (passed to Lightning)")
+    g.add_argument("--accelerator", default="auto", help="cpu, gpu, auto (default auto)")
+    g.add_argument("--devices", default="auto", help="number of devices or 'auto' (default auto)")
+    g.add_argument("--num-nodes", type=int, default=1, help="machines (default 1)")
+    g.add_argument("--strategy", default="auto", help="e.g. ddp (default auto)")
+
+
+def _add_train(sub) -> None:
+    p = sub.add_parser("train", help="train the sign classifier (needs the train extra)",
+                       description="Train a model with Lightning on datasets from `signlane gen` (or autolabel). "
+                                   "Writes checkpoints/ (best.ckpt, last.ckpt), logs/ (CSV), tensorboard/, "
+                                   "config.json and report pictures to --out. Resume a killed run with --resume.")
+    kinds = p.add_subparsers(dest="kind", required=True, metavar="{signs}")
+    signs = kinds.add_parser("signs", help="the sign classifier on ImageFolder crops",
+                             description="Train the sign classifier (a small CNN) on one or more ImageFolder crop "
+                                         "sets; writes confusion.png and errors_<class>.png at the end.")
+    signs.add_argument("data", nargs="+", type=Path, help="crop folders (<class>/<id>.png)")
+    signs.add_argument("--out", type=Path, required=True, help="run folder")
+    signs.add_argument("--epochs", type=_positive, default=20, help="maximum epochs (default 20)")
+    signs.add_argument("--batch-size", type=_positive, default=128, help="batch size (default 128)")
+    signs.add_argument("--lr", type=float, default=3e-3, help="peak learning rate (default 3e-3)")
+    signs.add_argument("--size", type=int, choices=[32, 48], default=32, help="input size (default 32)")
+    signs.add_argument("--patience", type=_positive, default=6, help="early-stopping patience in epochs (default 6)")
+    signs.add_argument("--seed", type=int, default=0, help="training seed (default 0)")
+    signs.add_argument("--workers", type=int, default=0, help="data-loader worker processes (default 0)")
+    signs.add_argument("--resume", action="store_true", help="continue from --out/checkpoints/last.ckpt")
+    _add_scale_out(signs)
+    p.set_defaults(func=_run_train)
+
+
+def _run_train(args) -> int:
+    try:
+        from train.common import ScaleOut
+        from train.signs import train_signs
+    except ImportError as e:
+        raise UserError(f"training needs the train extra (pip install 'signlane[train]'): {e}") from None
+    scale = ScaleOut(args.accelerator, args.devices, args.num_nodes, args.strategy)
+    try:
+        report = train_signs(args.data, args.out, epochs=args.epochs, batch_size=args.batch_size, lr=args.lr,
+                             size=args.size, patience=args.patience, seed=args.seed, resume=args.resume,
+                             scale=scale, workers=args.workers)
+    except ValueError as e:
+        raise UserError(str(e)) from None
+    report.pop("confusion", None)
+    print(json.dumps(report, indent=1))
+    return 0
+
+
+def _add_export(sub) -> None:
+    p = sub.add_parser("export", help="export a checkpoint to ONNX with its contract (needs the train extra)",
+                       description="Export a trained checkpoint to ONNX with the model contract in its metadata, "
+                                   "check it with onnx.checker and compare onnxruntime with torch on fixed inputs "
+                                   "(max abs diff <= 1e-4) or fail.")
+    kinds = p.add_subparsers(dest="kind", required=True, metavar="{signs}")
+    signs = kinds.add_parser("signs", help="the sign classifier")
+    signs.add_argument("ckpt", type=Path, help="checkpoint (e.g. RUN/checkpoints/best.ckpt)")
+    signs.add_argument("--out", type=Path, required=True, help="ONNX file to write")
+    signs.add_argument("--int8", action="store_true", help="also write <out>_int8.onnx and report its accuracy drop")
+    p.set_defaults(func=_run_export)
+
+
+def _run_export(args) -> int:
+    try:
+        from export.signs import export_signs
+    except ImportError as e:
+        raise UserError(f"export needs the train extra (pip install 'signlane[train]'): {e}") from None
+    try:
+        report = export_signs(args.ckpt, args.out, int8=args.int8)
+    except (ValueError, OSError) as e:
+        raise UserError(str(e)) from None
+    print(json.dumps(report, indent=1))
+    return 0
+
+
+def _add_classify(sub) -> None:
+    p = sub.add_parser("classify", help="classify sign crops with the ONNX sign classifier",
+                       description="Classify image crops of signs; prints one JSON object per crop: "
+                                   '{"source", "label", "score", "scores": {label: p}}.')
+    p.add_argument("crops", nargs="+", help="crop images (or folders of them)")
+    p.add_argument("--model", type=Path, help="ONNX model (default: the shipped signlane/models/signs.onnx)")
+    p.set_defaults(func=_run_classify)
+
+
+def _run_classify(args) -> int:
+    from signlane.media import MediaError, expand, read_image
+    from signlane.onnx_model import ModelError
+    from signlane.signs.classifier import DEFAULT_MODEL, SignClassifier
+    try:
+        clf = SignClassifier(args.model or DEFAULT_MODEL)
+    except ModelError as e:
+        raise UserError(str(e)) from None
+    sources, errors = expand(args.crops)
+    for e in errors:
+        print(f"signlane classify: {e}", file=sys.stderr)
+    failed = len(errors)
+    for src in sources:
+        try:
+            img = read_image(src.path)
+        except MediaError as e:
+            print(f"signlane classify: {e}", file=sys.stderr)
+            failed += 1
+            continue
+        label, score, scores = clf.classify([img])[0]
+        print(json.dumps({"source": str(src.path), "label": label, "score": round(score, 5),
+                          "scores": {k: round(v, 5) for k, v in scores.items()}}))
+    return 1 if failed else 0
 
 
 # --- main --------------------------------------------------------------------------------------
@@ -283,7 +414,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--version", action="version", version=f"signlane {__version__}")
     p.add_argument("-v", "--verbose", action="store_true", help="debug logging")
     sub = p.add_subparsers(dest="command", required=True, metavar="<command>")
-    for add in (_add_infer, _add_eval, _add_gen, _add_demo, _add_map):
+    for add in (_add_infer, _add_eval, _add_gen, _add_train, _add_export, _add_classify, _add_demo, _add_map):
         add(sub)
     return p
 

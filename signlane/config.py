@@ -36,6 +36,10 @@ class LanesConfig:
 class SignsConfig:
     enabled: bool = True
     variant: str = "robust"  # proposal rules: robust | published
+    model: str = ""  # ONNX classifier; "" = the shipped signlane/models/signs.onnx (proposals only if absent)
+    min_score: float = 0.5  # classified signs below this score are dropped
+    confirm_n: int = 3  # a sign is confirmed when seen in confirm_n of the last confirm_m frames
+    confirm_m: int = 5
 
 
 @dataclass(frozen=True)

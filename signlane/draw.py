@@ -153,8 +153,11 @@ def bar_chart(title: str, labels: Sequence[str], series: dict[str, Sequence[floa
             h = (H - bottom - top) * min(v, ymax) / ymax
             cv2.rectangle(img, (int(x0 + j * bw), int(H - bottom - h)), (int(x0 + (j + 1) * bw) - 2, H - bottom),
                           palette[j % len(palette)], -1)
-        cv2.putText(img, lab[:18], (int(x0), H - bottom + 18), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 1,
-                    cv2.LINE_AA)
+        # labels wider than their group wrap onto a second line at ':' (method:variant)
+        fit = max(4, int(gw * 0.8 / 7))
+        for k, part in enumerate(lab.replace(":", "\n:").split("\n")[:2]):
+            cv2.putText(img, part[:fit], (int(x0), H - bottom + 18 + 14 * k), cv2.FONT_HERSHEY_SIMPLEX, 0.4,
+                        (0, 0, 0), 1, cv2.LINE_AA)
     for j, name in enumerate(series):  # legend
         y = H - 25
         x = left + j * 200

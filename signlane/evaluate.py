@@ -107,3 +107,31 @@ def plot_lanes(path: str | Path, rows: list[dict]) -> None:
     errs = bar_chart("lateral offset error (fraction of lane width)", labels,
                      {"median": [r["offset_err_median"] for r in rows], "p95": [r["offset_err_p95"] for r in rows]})
     write_image(path, np.vstack([found, errs]))
+
+
+def eval_signs(data: str | Path, model: str | Path | None = None, min_score: float = 0.5) -> dict:
+    """Classifier scores on an ImageFolder crop set (e.g. a fresh `signlane gen signs` seed):
+    accuracy, recall per class, and how often a non-sign is accepted as a sign (argmax not
+    'unknown' and score >= min_score, as the runtime would act on it)."""
+    import cv2
+    from signlane.media import IMAGE_EXT
+    from signlane.signs.classifier import DEFAULT_MODEL, SignClassifier
+    clf = SignClassifier(model or DEFAULT_MODEL, threads=2, batch=256)
+    root = Path(data)
+    crops, labels = [], []
+    for d in sorted(p for p in root.iterdir() if p.is_dir() and p.name in clf.classes):
+        for f in sorted(d.iterdir()):
+            if f.suffix.lower() in IMAGE_EXT:
+                crops.append(cv2.imread(str(f)))
+                labels.append(clf.classes.index(d.name))
+    if not crops:
+        raise ValueError(f"{root}: no crops in class folders ({', '.join(clf.classes)})")
+    probs = clf.probabilities(crops)
+    pred, y = probs.argmax(axis=1), np.array(labels)
+    unknown = clf.classes.index("unknown")
+    neg = y == unknown
+    accepted = (pred != unknown) & (probs.max(axis=1) >= min_score)
+    recall = {c: float((pred[y == k] == k).mean()) for k, c in enumerate(clf.classes) if (y == k).any()}
+    return {"model": str(model or DEFAULT_MODEL), "n": int(len(y)), "accuracy": float((pred == y).mean()),
+            "min_recall": min(recall.values()), "recall": recall,
+            "non_sign_accepted": float(accepted[neg].mean()) if neg.any() else float("nan")}

@@ -40,7 +40,10 @@ def fit_boundary(points_m: np.ndarray, order: int = 2, weights: np.ndarray | Non
     The order drops to 1 when the points span too little distance for a stable quadratic.
     """
     pts = np.asarray(points_m, dtype=np.float64).reshape(-1, 2)
-    pts = pts[np.all(np.isfinite(pts), axis=1)]
+    finite = np.all(np.isfinite(pts), axis=1)
+    pts = pts[finite]
+    if weights is not None:
+        weights = np.asarray(weights, dtype=np.float64).reshape(-1)[finite]
     if len(pts) < min_points:
         return None
     y0, y1 = float(pts[:, 1].min()), float(pts[:, 1].max())
@@ -48,7 +51,7 @@ def fit_boundary(points_m: np.ndarray, order: int = 2, weights: np.ndarray | Non
         return None
     if y1 - y0 < 4.0 or len(pts) < 6:
         order = min(order, 1)
-    w = None if weights is None else np.sqrt(np.asarray(weights, dtype=np.float64)[: len(pts)])
+    w = None if weights is None else np.sqrt(weights)
     coeffs = np.polyfit(pts[:, 1], pts[:, 0], order, w=w)
     if len(coeffs) < 3:
         coeffs = np.concatenate([np.zeros(3 - len(coeffs)), coeffs])
@@ -73,6 +76,8 @@ def estimate_from_fits(method: str, camera: Camera, left: Boundary | None, right
                        lane_width_m: float = DEFAULT_LANE_WIDTH_M, confidence: float | None = None,
                        debug_mask: np.ndarray | None = None) -> LaneEstimate:
     """LaneEstimate from fitted boundaries; a missing side is placed one lane width away."""
+    if not lane_width_m > 0:  # a caller's measured width of 0 (or NaN) must not divide
+        lane_width_m = DEFAULT_LANE_WIDTH_M
     if left is None and right is None:
         return LaneEstimate(method, False, confidence=0.0, debug_mask=debug_mask)
     if left is None:

@@ -42,6 +42,7 @@ class SamplerConfig:
     heading_deg: float = 4.0  # std of the car's heading error
     map_size: str = "medium"
     looks_strength: float = 1.0  # worn/faded paint and shadows; the hard test set uses 2
+    focus: str = "none"  # none | signs: place the car 4-45 m before a sign facing it (sign datasets)
 
 
 class FrameSampler:
@@ -66,6 +67,7 @@ class FrameSampler:
         scene = build_scene(track, seed=int(rng.integers(1 << 31)), randomise=cfg.randomise,
                             looks_strength=cfg.looks_strength)
         self._renderer = Renderer(scene, sign_strength=0.7 if cfg.randomise else 0.0)
+        self._sign_s = signs_along(self._route, scene.objects) if cfg.focus == "signs" else np.zeros(0)
         self._group = group
 
     def effects_for(self, rng: np.random.Generator) -> Effects:
@@ -81,9 +83,26 @@ class FrameSampler:
         camera = random_camera(rng, cfg.width, cfg.height, 1.0 if cfg.randomise else 0.0)
         route = self._route
         s = float(rng.uniform(0, route.length - 80.0))
+        if len(self._sign_s):
+            s = float(np.clip(self._sign_s[int(rng.integers(len(self._sign_s)))] - rng.uniform(4, 45), 0, None))
         lateral = float(np.clip(rng.normal(0, cfg.lateral_m), -1.2, 1.2))
         heading = float(np.radians(np.clip(rng.normal(0, cfg.heading_deg), -12, 12)))
         return self._renderer.render_on_route(route, s, camera, lateral, heading, self.effects_for(rng), rng)
+
+
+def signs_along(route: Route, objects) -> np.ndarray:
+    """Arc lengths along the route of the signs that stand beside it facing its traffic."""
+    from signlane.world.art import SIGN_NAMES
+    out = []
+    for o in objects:
+        if o.kind not in SIGN_NAMES:
+            continue
+        s, lat = route.project(o.x, o.y)
+        tangent = route.tangent[route.index_at(s)]
+        facing = np.array([np.cos(o.facing), np.sin(o.facing)])
+        if abs(lat) < 10.0 and float(facing @ tangent) < -0.5 and s > 50.0:
+            out.append(s)
+    return np.array(out)
 
 
 class DriveSampler:

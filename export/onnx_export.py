@@ -1,0 +1,101 @@
+"""ONNX export shared by every model: export, metadata, onnx.checker, onnxruntime-vs-torch parity,
+int8 quantization. Export fails loudly: a file that does not check or match torch raises."""
+from __future__ import annotations
+
+import os
+import tempfile
+import warnings
+from pathlib import Path
+
+import numpy as np
+import onnx
+import torch
+
+
+class ExportError(Exception):
+    pass
+
+
+def _session(path: str | Path):
+    import onnxruntime as ort
+    opts = ort.SessionOptions()
+    opts.log_severity_level = 3
+    return ort.InferenceSession(str(path), opts, providers=["CPUExecutionProvider"])
+
+
+def export_onnx(model: torch.nn.Module, input_shape: tuple[int, ...], path: str | Path, metadata: dict[str, str],
+                tol: float = 1e-4, opset: int = 17) -> dict:
+    """Export with a dynamic batch axis, add metadata, check, compare with torch; atomic write."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    model = model.eval().cpu()
+    fd, tmp = tempfile.mkstemp(suffix=".onnx", dir=path.parent)
+    os.close(fd)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the TorchScript exporter's deprecation notice
+            torch.onnx.export(model, (torch.zeros(*input_shape),), tmp, input_names=["input"], output_names=["output"],
+                              dynamic_axes={"input": {0: "batch"}, "output": {0: "batch"}}, dynamo=False,
+                              opset_version=opset)
+        proto = onnx.load(tmp)
+        set_metadata(proto, metadata)
+        onnx.checker.check_model(proto)
+        onnx.save(proto, tmp)
+        parity = check_parity(model, tmp, input_shape, tol)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+    return {"parity_max_abs": parity, "bytes": path.stat().st_size}
+
+
+def set_metadata(proto: onnx.ModelProto, metadata: dict[str, str]) -> None:
+    keep = [p for p in proto.metadata_props if p.key not in metadata]
+    del proto.metadata_props[:]
+    proto.metadata_props.extend(keep)
+    for k, v in metadata.items():
+        proto.metadata_props.add(key=k, value=str(v))
+
+
+def check_parity(model: torch.nn.Module, onnx_path: str | Path, input_shape: tuple[int, ...], tol: float) -> float:
+    """Max |torch - onnxruntime| over fixed seeded inputs at batch 1 and 5; raises above tol."""
+    sess = _session(onnx_path)
+    g = torch.Generator().manual_seed(0)
+    worst = 0.0
+    for batch in (1, 5):
+        x = torch.randn((batch, *input_shape[1:]), generator=g)
+        with torch.no_grad():
+            ref = model(x).numpy()
+        got = sess.run(None, {"input": x.numpy()})[0]
+        worst = max(worst, float(np.max(np.abs(ref - got))))
+    if not worst <= tol:
+        raise ExportError(f"{onnx_path}: onnxruntime output differs from torch by {worst:.2e} (> {tol:.0e})")
+    return worst
+
+
+def quantize_int8(src: str | Path, dst: str | Path, calibration: list[np.ndarray]) -> None:
+    """Static int8 (QDQ) quantization calibrated on the given input batches; metadata kept."""
+    from onnxruntime.quantization import CalibrationDataReader, QuantFormat, QuantType, quantize_static
+
+    class Reader(CalibrationDataReader):
+        def __init__(self):
+            self.it = iter(calibration)
+
+        def get_next(self):
+            x = next(self.it, None)
+            return None if x is None else {"input": x}
+
+    dst = Path(dst)
+    fd, tmp = tempfile.mkstemp(suffix=".onnx", dir=dst.parent)
+    os.close(fd)
+    try:
+        quantize_static(str(src), tmp, Reader(), quant_format=QuantFormat.QDQ, activation_type=QuantType.QUInt8,
+                        weight_type=QuantType.QInt8, per_channel=True)
+        proto = onnx.load(tmp)
+        set_metadata(proto, {p.key: p.value for p in onnx.load(str(src)).metadata_props})
+        onnx.checker.check_model(proto)
+        onnx.save(proto, tmp)
+        os.replace(tmp, dst)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)

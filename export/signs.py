@@ -1,0 +1,72 @@
+"""`signlane export signs CKPT --out model.onnx [--int8]`: the classifier as ONNX with its contract."""
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from export.onnx_export import export_onnx, quantize_int8
+from signlane.onnx_model import make_metadata
+from signlane.signs.classifier import DEFAULT_SPEC, TASK, SignClassifier, preprocess_crops
+from signlane.world.art import SIGN_CLASSES
+
+
+def run_dir_of(ckpt: Path) -> Path:
+    """The training run folder of a checkpoint (<run>/checkpoints/x.ckpt)."""
+    return ckpt.parent.parent if ckpt.parent.name == "checkpoints" else ckpt.parent
+
+
+def data_hash(roots: list[str]) -> str:
+    """Hash of the training sets' manifests (or file lists when there is no manifest)."""
+    h = hashlib.sha256()
+    for r in sorted(roots):
+        m = Path(r) / "manifest.json"
+        h.update(m.read_bytes() if m.exists() else "\n".join(sorted(p.name for p in Path(r).rglob("*.png"))).encode())
+    return h.hexdigest()[:16]
+
+
+def export_signs(ckpt: str | Path, out: str | Path, int8: bool = False, metrics: dict | None = None) -> dict:
+    """Export a sign checkpoint; returns a report (parity, sizes, val accuracy of fp32 and int8)."""
+    from train.sign_task import SignTask
+    ckpt, out = Path(ckpt), Path(out)
+    if not ckpt.is_file():
+        raise ValueError(f"{ckpt}: checkpoint not found")
+    task = SignTask.load_from_checkpoint(str(ckpt), map_location="cpu").eval()
+    size = int(task.hparams.size)
+    spec = replace(DEFAULT_SPEC, width=size, height=size)
+    run = run_dir_of(ckpt)
+    cfg = json.loads((run / "config.json").read_text()) if (run / "config.json").exists() else {}
+    roots = cfg.get("data", [])
+    meta = make_metadata(TASK, list(SIGN_CLASSES), spec, data_hash(roots) if roots else "unknown", metrics or {},
+                         {"arch": "SignNet", "checkpoint": ckpt.name})
+    report = export_onnx(task.net, (1, 3, size, size), out, meta)
+    val = _val_crops(roots, spec) if roots else None
+    if val is not None:
+        report["val_accuracy"] = _accuracy(out, *val)
+    if int8:
+        if val is None:
+            raise ValueError("--int8 needs the training data (listed in the run's config.json) for calibration")
+        q = out.with_name(out.stem + "_int8.onnx")
+        calib = [preprocess_crops(val[0][i:i + 64], spec) for i in range(0, min(len(val[0]), 1024), 64)]
+        quantize_int8(out, q, calib)
+        report["int8"] = {"path": str(q), "bytes": q.stat().st_size, "val_accuracy": _accuracy(q, *val)}
+        report["int8"]["accuracy_drop"] = report["val_accuracy"] - report["int8"]["val_accuracy"]
+    return report
+
+
+def _val_crops(roots: list[str], spec) -> tuple[list[np.ndarray], np.ndarray] | None:
+    import cv2
+    from train.sign_data import list_crops, split_of
+    items = [it for it in list_crops([Path(r) for r in roots]) if split_of(it[0], 0.1) == "val"]
+    if not items:
+        return None
+    return [cv2.imread(str(p)) for p, _ in items], np.array([label for _, label in items])
+
+
+def _accuracy(model_path: Path, crops: list[np.ndarray], labels: np.ndarray) -> float:
+    clf = SignClassifier(model_path, threads=2, batch=256)
+    pred = clf.probabilities(crops).argmax(axis=1)
+    return float((pred == labels).mean())

@@ -1,0 +1,176 @@
+"""`signlane infer`: the pipeline on images, folders and videos; annotated output and JSON lines.
+
+One bad input never stops the batch: it gets one line on stderr and the run's exit code
+becomes 1. JSON records follow the contract in DESIGN.md.
+"""
+from __future__ import annotations
+
+import json
+import sys
+from collections import Counter
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO, Iterator
+
+import cv2
+import numpy as np
+from tqdm import tqdm
+
+from signlane.config import Config
+from signlane.draw import VideoOut, draw_boxes, draw_hud, draw_lane, write_image
+from signlane.fileio import atomic_write_text
+from signlane.media import MediaError, Source, expand, iter_video, read_image, video_info
+from signlane.pipeline import Pipeline
+from signlane.types import Command, Frame, Perception
+
+LANE_FILL_BGR = (0, 160, 0)
+
+
+@dataclass
+class Summary:
+    frames: int = 0
+    lanes_found: int = 0
+    signs: Counter = field(default_factory=Counter)
+    timing: dict[str, list[float]] = field(default_factory=dict)
+    failed: list[str] = field(default_factory=list)
+
+    def add(self, p: Perception) -> None:
+        self.frames += 1
+        self.lanes_found += int(p.lane.found)
+        self.signs.update(s.label for s in p.signs)
+        for k, v in p.timing_ms.items():
+            self.timing.setdefault(k, []).append(v)
+
+    def table(self) -> str:
+        rows = [("frames", str(self.frames)),
+                ("lanes found", f"{100.0 * self.lanes_found / max(self.frames, 1):.1f} %"),
+                ("inputs failed", str(len(self.failed)))]
+        rows += [(f"signs: {k}", str(v)) for k, v in sorted(self.signs.items())]
+        rows += [(f"ms {k} (median)", f"{np.median(v):.2f}") for k, v in self.timing.items()]
+        w = max(len(k) for k, _ in rows)
+        return "\n".join(f"{k.ljust(w)}  {v}" for k, v in rows)
+
+
+def record(source: str, index: int, p: Perception, cmd: Command) -> dict:
+    """The per-frame JSON object of the infer contract."""
+    h, w = p.frame.image_bgr.shape[:2]
+    lane = p.lane
+
+    def pl(a):
+        return [] if a is None else [[round(float(x), 2), round(float(y), 2)] for x, y in a]
+    return {"source": source, "frame": index, "width": int(w), "height": int(h),
+            "lane": {"method": lane.method, "found": bool(lane.found), "offset": round(float(lane.offset), 4),
+                     "heading": round(float(lane.heading), 5), "curvature": round(float(lane.curvature), 6),
+                     "confidence": round(float(lane.confidence), 3), "left": pl(lane.left), "right": pl(lane.right)},
+            "signs": [{"label": s.label, "score": round(float(s.score), 4), "box": [int(v) for v in s.box]}
+                      for s in p.signs],
+            "control": {"steering": round(float(cmd.steering), 4), "throttle": round(float(cmd.throttle), 4),
+                        "state": cmd.state},
+            "timing_ms": {k: round(v, 3) for k, v in p.timing_ms.items()}}
+
+
+def annotate(p: Perception, cmd: Command) -> np.ndarray:
+    """The frame with the lane (boundaries and the area between), sign boxes and a HUD."""
+    out = p.frame.image_bgr.copy()
+    lane = p.lane
+    if lane.found and lane.left is not None and lane.right is not None and len(lane.left) > 1 and len(lane.right) > 1:
+        poly = np.concatenate([lane.left, lane.right[::-1]]).astype(np.int32)
+        fill = out.copy()
+        cv2.fillPoly(fill, [poly], LANE_FILL_BGR)
+        out = cv2.addWeighted(fill, 0.3, out, 0.7, 0)  # S2's blend of the lane area
+    draw_lane(out, lane.left, lane.right)
+    draw_boxes(out, [(s.label if not s.color else f"{s.label}:{s.color}", s.score, s.box) for s in p.signs])
+    status = f"offset {lane.offset:+.2f} heading {np.degrees(lane.heading):+.1f}" if lane.found else "no lane"
+    return draw_hud(out, [f"{lane.method}: {status}",
+                          f"steer {cmd.steering:+.2f} throttle {cmd.throttle:.2f} {cmd.state}"])
+
+
+def _frames(src: Source) -> Iterator[np.ndarray]:
+    if src.kind == "image":
+        yield read_image(src.path)
+    else:
+        yield from iter_video(src.path)
+
+
+class Writer:
+    """Annotated images/videos and lane masks under `out`; JSON lines to a stream."""
+
+    def __init__(self, out: Path | None, save_masks: bool, json_stream: IO[str] | None):
+        self.out, self.save_masks, self.json = out, save_masks, json_stream
+        self._video: VideoOut | None = None
+
+    def frame(self, src: Source, index: int, p: Perception, cmd: Command) -> None:
+        if self.json is not None:
+            self.json.write(json.dumps(record(str(src.path), index, p, cmd)) + "\n")
+        if self.out is None:
+            return
+        stem = src.path.stem
+        image = annotate(p, cmd)
+        if src.kind == "image":
+            suffix = src.path.suffix.lower() if src.path.suffix.lower() in (".png", ".jpg", ".jpeg") else ".png"
+            write_image(self.out / f"{stem}{suffix}", image)
+        else:
+            if self._video is None:
+                h, w = image.shape[:2]
+                self._video = VideoOut(self.out / f"{stem}.mp4", video_info(src.path)[0], (w, h))
+            self._video.write(image)
+        if self.save_masks:
+            h, w = p.frame.image_bgr.shape[:2]
+            mask = p.lane.debug_mask if p.lane.debug_mask is not None else np.zeros((h, w), np.uint8)
+            name = f"{stem}_lane.png" if src.kind == "image" else f"{stem}_{index:06d}_lane.png"
+            write_image(self.out / name, (mask > 0).astype(np.uint8) * 255)
+
+    def end_source(self, ok: bool) -> None:
+        if self._video is not None:
+            if ok:
+                self._video.close()
+            else:
+                self._video.__exit__(RuntimeError, None, None)
+            self._video = None
+
+
+def run_infer(paths: list[str], config: Config, out: Path | None = None, json_path: str | None = None,
+              save_masks: bool = False, progress: bool = True) -> Summary:
+    """Run the pipeline over every input; returns the summary (summary.failed lists bad inputs)."""
+    if save_masks and out is None:
+        raise ValueError("--save-masks writes masks beside the annotated images: give --out DIR")
+    sources, errors = expand(paths)
+    summary = Summary(failed=list(errors))
+    for e in errors:
+        print(f"signlane infer: {e}", file=sys.stderr)
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        atomic_write_text(out / "config.json", json.dumps(config.to_dict(), indent=1))
+    stream = None if json_path is None else (sys.stdout if json_path == "-" else open(json_path, "w"))
+    writer = Writer(out, save_masks, stream)
+    bar = tqdm(total=len(sources), desc="infer", unit="input", disable=not progress or len(sources) < 2,
+               file=sys.stderr)
+    try:
+        with Pipeline(config) as pipe:
+            for src in sources:
+                ok = _run_source(src, pipe, writer, summary, progress)
+                writer.end_source(ok)
+                bar.update(1)
+    finally:
+        bar.close()
+        if stream is not None and stream is not sys.stdout:
+            stream.close()
+    return summary
+
+
+def _run_source(src: Source, pipe: Pipeline, writer: Writer, summary: Summary, progress: bool) -> bool:
+    pipe.reset()
+    frames = _frames(src)
+    if src.kind == "video" and progress:
+        frames = tqdm(frames, total=video_info(src.path)[1] or None, desc=src.path.name, unit="frame",
+                      leave=False, file=sys.stderr)
+    try:
+        for i, img in enumerate(frames):
+            p, cmd = pipe.step(Frame(img, seq=i))
+            summary.add(p)
+            writer.frame(src, i, p, cmd)
+        return True
+    except MediaError as e:
+        print(f"signlane infer: {e}", file=sys.stderr)
+        summary.failed.append(str(e))
+        return False

@@ -1,0 +1,98 @@
+"""ONNX models with their contract in metadata_props, run with onnxruntime.
+
+Every signlane model carries (keys prefixed `signlane.`): `task`, `contract` (version of this
+contract), `classes` (JSON list, in output order), `input` (JSON: size [w, h], color, layout,
+scale, mean, std), `data_hash`, `metrics` (JSON). The loader refuses a file whose contract it
+does not understand, with one line naming the file and the problem.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+CONTRACT_VERSION = "1"
+PREFIX = "signlane."
+
+
+class ModelError(Exception):
+    """A model file that cannot be used: str(e) names the file and the problem."""
+
+
+@dataclass(frozen=True)
+class InputSpec:
+    width: int
+    height: int
+    color: str  # "RGB" or "BGR"
+    layout: str  # "NCHW"
+    scale: float  # multiply uint8 pixels by this first
+    mean: tuple[float, float, float]
+    std: tuple[float, float, float]
+
+    def to_json(self) -> str:
+        return json.dumps({"size": [self.width, self.height], "color": self.color, "layout": self.layout,
+                           "scale": self.scale, "mean": list(self.mean), "std": list(self.std)})
+
+    @classmethod
+    def from_json(cls, text: str, where: str) -> "InputSpec":
+        try:
+            d = json.loads(text)
+            spec = cls(int(d["size"][0]), int(d["size"][1]), str(d["color"]), str(d["layout"]), float(d["scale"]),
+                       tuple(float(v) for v in d["mean"]), tuple(float(v) for v in d["std"]))
+        except (ValueError, KeyError, TypeError, IndexError) as e:
+            raise ModelError(f"{where}: metadata 'input' is malformed ({e})") from None
+        if spec.color not in ("RGB", "BGR") or spec.layout != "NCHW" or min(spec.width, spec.height) < 4 \
+                or len(spec.mean) != 3 or len(spec.std) != 3 or min(spec.std) <= 0:
+            raise ModelError(f"{where}: metadata 'input' is not understood: {text}")
+        return spec
+
+
+def make_metadata(task: str, classes: list[str], spec: InputSpec, data_hash: str, metrics: dict,
+                  extra: dict[str, str] | None = None) -> dict[str, str]:
+    meta = {"task": task, "contract": CONTRACT_VERSION, "classes": json.dumps(classes), "input": spec.to_json(),
+            "data_hash": data_hash, "metrics": json.dumps(metrics)}
+    meta.update(extra or {})
+    return {PREFIX + k: v for k, v in meta.items()}
+
+
+class OnnxModel:
+    """An onnxruntime session plus the contract read from the file's metadata."""
+
+    def __init__(self, path: str | Path, task: str, threads: int = 1):
+        import onnxruntime as ort
+        self.path = Path(path)
+        where = str(self.path)
+        if not self.path.is_file():
+            raise ModelError(f"{where}: model file not found")
+        opts = ort.SessionOptions()
+        opts.intra_op_num_threads = threads
+        opts.inter_op_num_threads = 1
+        opts.log_severity_level = 3
+        try:
+            self.session = ort.InferenceSession(where, opts, providers=["CPUExecutionProvider"])
+        except Exception as e:  # onnxruntime raises its own exception types for corrupt files
+            first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+            raise ModelError(f"{where}: not a loadable ONNX model ({first[:200]})") from None
+        meta = self.session.get_modelmeta().custom_metadata_map
+        self.meta = {k[len(PREFIX):]: v for k, v in meta.items() if k.startswith(PREFIX)}
+        if self.meta.get("task") != task:
+            raise ModelError(f"{where}: metadata task is {self.meta.get('task')!r}, expected {task!r} "
+                             "(not a signlane model for this job)")
+        if self.meta.get("contract") != CONTRACT_VERSION:
+            raise ModelError(f"{where}: model contract {self.meta.get('contract')!r} is not supported "
+                             f"(this signlane reads contract {CONTRACT_VERSION})")
+        try:
+            self.classes = [str(c) for c in json.loads(self.meta["classes"])]
+        except (KeyError, ValueError, TypeError):
+            raise ModelError(f"{where}: metadata 'classes' is missing or not a JSON list") from None
+        self.input = InputSpec.from_json(self.meta.get("input", ""), where)
+        self.input_name = self.session.get_inputs()[0].name
+        try:
+            self.metrics = json.loads(self.meta.get("metrics", "{}"))
+        except ValueError:
+            self.metrics = {}
+
+    def run(self, batch: np.ndarray) -> np.ndarray:
+        return self.session.run(None, {self.input_name: batch})[0]

@@ -1,0 +1,424 @@
+"""Colour-mask sign proposals: red/blue HSV masks -> blobs -> scored, padded boxes.
+
+Two variants share one code path, chosen by :class:`ProposalParams`:
+
+* ``ProposalParams.published()`` is S1 step 5 exactly: one union mask (red or blue), 4-connected
+  components, keep boxes with w, h >= 20 px, w, h <= 0.8 of the frame and aspect within 2:1.
+* ``ProposalParams()`` (the default, "robust") keeps red and blue apart (a red ring next to a blue
+  disc must not merge), blurs away sensor noise and fills holes by taking each blob's outer
+  contour (a ring, or a stop sign whose white text splits the red, gives ONE box). It starts at
+  a pale saturation level (faded signs) and searches a blob that does not look like a sign again
+  at higher levels inside its own box (a vivid sign glued to a pale sky or wall of its colour
+  separates there). Ring signs get two more chances: as a pale round hole in a red wall, and
+  after a closing that joins a thin ring's broken arcs. Thresholds relax on dark and washed-out
+  frames, dull tints (S * V small: bluish asphalt) are ignored, the minimum size scales with the
+  frame, blobs are scored by shape (signs are discs and octagons; a blob cut by the frame edge by
+  a circle fit), and non-maximum suppression and a per-frame cap finish the list.
+
+All images are ``uint8`` ``(H, W, 3)`` **BGR** (OpenCV order); boxes are ``(x, y, w, h)`` int
+image pixels, origin top-left. OpenCV's 8-bit hue runs 0..180 (degrees / 2).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import cv2
+import numpy as np
+
+from signlane.types import SignDetection
+
+HueRange = tuple[int, int]
+ColorSpec = tuple[str, tuple[HueRange, ...], int, int]  # colour, hue ranges, first S level, V minimum
+RING_GROW = 0.09  # a ring's width / its outer diameter, typical: the interior grows by this per side
+
+
+@dataclass(frozen=True)
+class ProposalParams:
+    """Thresholds and filters; defaults are the robust variant, see :meth:`published`."""
+
+    red_hue: tuple[HueRange, ...] = ((0, 12), (165, 180))
+    red_s_min: int = 40  # first (palest) saturation level
+    red_v_min: int = 45
+    blue_hue: tuple[HueRange, ...] = ((88, 128),)  # sign blues; wider takes in teal crowns, purple walls
+    blue_s_min: int = 40
+    blue_v_min: int = 35
+    s_step: int = 25  # a blob that does not look like a sign is searched again at S + s_step ...
+    max_depth: int = 6  # ... inside its own box, up to this many times (0 = one level, as S1)
+    confident: float = 0.9  # a blob scoring this well is not searched further
+    ring_holes: bool = True  # also look for no_left/no_right rings as pale holes in red blobs
+    ring_close_px: int = 7  # an extra red pass closing gaps this wide (thin, faded, broken rings)
+    separate_colors: bool = True  # False = S1: one union mask, connected components, no holes filled
+    connectivity: int = 4  # of S1's connected components (the robust path uses outer contours)
+    close_px: int = 0  # closing kernel at 480 rows (scaled with the frame) of the main search; off,
+    # because it bridges the thin white rim that parts a blue disc or a stop sign from a wall
+    adaptive: bool = True  # relax V thresholds on dark frames and S on washed-out ones ...
+    washed_s: float = 100.0  # ... whose 95th-percentile saturation is below this
+    chroma_min: int = 18  # S * V / 255 (= max - min of B, G, R) floor: tinted dark asphalt is no sign
+    blur_px: int = 3  # Gaussian pre-blur kernel (0 = none)
+    min_size: int = 20  # px; w and h of a kept box must both reach it ...
+    min_size_frac: float = 16 / 480  # ... or this fraction of the frame height, whichever is smaller
+    max_frac: float = 0.8  # w <= max_frac * W and h <= max_frac * H
+    max_aspect: float = 2.0  # long side / short side
+    border_aspect: float = 4.0  # the same for a blob cut by the frame edge (a truncated sign)
+    min_score: float = 0.4  # drop blobs that look like neither a disc nor an octagon
+    nms_iou: float = 0.4  # 0 = no NMS
+    max_proposals: int = 8  # 0 = no cap
+    pad_frac: float = 0.03  # grow each box by this fraction of its size on every side
+    shape_score: bool = True  # False: every proposal scores 1.0
+
+    @classmethod
+    def published(cls) -> "ProposalParams":
+        """S1 step 5 exactly (red S>=70, V>=50; blue H 100-140, S>=150; union mask; 4-conn.)."""
+        return cls(red_hue=((0, 10), (170, 180)), red_s_min=70, red_v_min=50, blue_hue=((100, 140),),
+                   blue_s_min=150, blue_v_min=0, max_depth=0, ring_holes=False, ring_close_px=0,
+                   separate_colors=False, connectivity=4, close_px=0, adaptive=False, blur_px=0,
+                   min_size=20, min_size_frac=0.0,
+                   max_frac=0.8, max_aspect=2.0, border_aspect=2.0, min_score=0.0, nms_iou=0.0,
+                   max_proposals=0, pad_frac=0.0, shape_score=False)
+
+
+def _hue_mask(hsv: np.ndarray, hues: tuple[HueRange, ...], s_min: int, v_min: int) -> np.ndarray:
+    mask = None
+    for lo, hi in hues:
+        m = cv2.inRange(hsv, (lo, s_min, v_min), (hi, 255, 255))
+        mask = m if mask is None else cv2.bitwise_or(mask, m)
+    return mask
+
+
+def _scales(hsv: np.ndarray, params: ProposalParams) -> tuple[float, float]:
+    """(S, V) threshold factors <= 1 from sparse percentiles of the frame: a dark frame lowers
+    V minimums, a washed-out one (over-exposure, glare, haze: little saturation anywhere) lowers
+    the first S level. Percentiles, so that one bright sky or one vivid wall does not decide."""
+    if not params.adaptive or hsv.size == 0:
+        return 1.0, 1.0
+    sparse = hsv[::8, ::8].reshape(-1, 3)
+    s95, v90 = np.percentile(sparse[:, 1], 95), np.percentile(sparse[:, 2], 90)
+    return float(np.clip(s95 / params.washed_s, 0.5, 1.0)), float(np.clip(v90 / 200.0, 0.35, 1.0))
+
+
+def _chroma_mask(hsv: np.ndarray, c_min: float) -> np.ndarray | None:
+    if c_min <= 0:
+        return None
+    chroma = cv2.multiply(hsv[:, :, 1], hsv[:, :, 2], scale=1 / 255.0)
+    return cv2.threshold(chroma, c_min - 1e-3, 255, cv2.THRESH_BINARY)[1]
+
+
+def _color_specs(params: ProposalParams, hsv: np.ndarray) -> tuple[ColorSpec, ColorSpec]:
+    """Red's and blue's thresholds, adapted to the frame."""
+    ks, kv = _scales(hsv, params)
+    return (("red", params.red_hue, int(params.red_s_min * ks), int(params.red_v_min * kv)),
+            ("blue", params.blue_hue, int(params.blue_s_min * ks), int(params.blue_v_min * kv)))
+
+
+def color_masks(image_bgr: np.ndarray, params: ProposalParams | None = None) -> dict[str, np.ndarray]:
+    """uint8 0/255 ``(H, W)`` masks of a uint8 ``(H, W, 3)`` BGR image at the first (palest)
+    saturation level: keys ``red``, ``blue`` and ``union``. For display and debugging."""
+    params = params or ProposalParams()
+    img = _as_bgr(image_bgr)
+    if img.size == 0:
+        return {k: np.zeros(img.shape[:2], np.uint8) for k in ("red", "blue", "union")}
+    hsv = _hsv(img, params)
+    out = {c: _hue_mask(hsv, hues, s, v) for c, hues, s, v in _color_specs(params, hsv)}
+    out["union"] = cv2.bitwise_or(out["red"], out["blue"])
+    return out
+
+
+def _hsv(img: np.ndarray, params: ProposalParams) -> np.ndarray:
+    if params.blur_px > 1:  # sensor noise and JPEG blocks otherwise speckle the pale levels
+        img = cv2.GaussianBlur(img, (params.blur_px | 1, params.blur_px | 1), 0)
+    return cv2.cvtColor(img, cv2.COLOR_BGR2HSV)
+
+
+def _as_bgr(image: np.ndarray) -> np.ndarray:
+    if not isinstance(image, np.ndarray) or image.dtype != np.uint8:
+        raise ValueError(f"propose: expected a uint8 numpy image, got {getattr(image, 'dtype', type(image))}")
+    if image.ndim == 2:
+        return np.repeat(image[:, :, None], 3, axis=2)  # cvtColor refuses an empty image
+    if image.ndim != 3 or image.shape[2] not in (3, 4):
+        raise ValueError(f"propose: expected an (H, W, 3) BGR image, got shape {image.shape}")
+    return np.ascontiguousarray(image[:, :, :3]) if image.shape[2] == 4 else image
+
+
+@dataclass(frozen=True)
+class _Blob:
+    box: tuple[int, int, int, int]
+    color: str
+    score: float
+
+
+def _shape_score(contour: np.ndarray, w: int, h: int, frame_wh: tuple[int, int] | None = None) -> float:
+    """0..1: how much a filled outer contour looks like a disc or an octagon.
+
+    The outline is judged by the convex hull, so an arrow, a ring's gap or a small sign's STOP
+    (which can cut the red in two) does not spoil it: aspect (signs face the road, so they are
+    near-square), hull circularity 4*pi*A/P^2 (disc 1, octagon 0.95, square 0.79, triangle 0.6)
+    and hull extent = hull area / box area (disc 0.785, octagon 0.83, rectangle 1, triangle 0.5).
+    Solidity = area / hull area counts too, but leniently. A blob cut by the frame edge
+    (`frame_wh` given) is scored by a circle fit, or by the same cues less aspect, whichever is
+    better (a sign seen from the side is an ellipse), capped at 0.7: half a disc says less.
+    """
+    hull = cv2.convexHull(contour)
+    hull_area = cv2.contourArea(hull)
+    if hull_area <= 0:
+        return 0.0
+    solidity = cv2.contourArea(contour) / hull_area
+    perim = cv2.arcLength(hull, True)
+    circ = 4.0 * np.pi * hull_area / max(perim * perim, 1e-6)
+    outline = _unit((circ - 0.7) / 0.2) * (1.0 - _unit(abs(hull_area / float(w * h) - 0.8) / 0.4))
+    outline *= _unit((solidity - 0.3) / 0.5)
+    if frame_wh is not None:
+        return max(_cut_circle_score(hull, w, h, frame_wh), 0.7 * outline ** (1 / 3))
+    return (outline * _unit((min(w, h) / max(w, h) - 0.35) / 0.5)) ** 0.25
+
+
+def _unit(x: float) -> float:
+    """x clamped to [0, 1] (np.clip costs microseconds a scalar)."""
+    return min(1.0, max(0.0, float(x)))
+
+
+def _cut_circle_score(hull: np.ndarray, w: int, h: int, frame_wh: tuple[int, int]) -> float:
+    """Score of a blob cut by the frame edge: a least-squares circle through its hull points off
+    the edge must fit them closely and be about as big as the visible part suggests."""
+    W, H = frame_wh
+    pts = hull.reshape(-1, 2).astype(np.float64)
+    on_edge = (pts[:, 0] <= 0) | (pts[:, 1] <= 0) | (pts[:, 0] >= W - 1) | (pts[:, 1] >= H - 1)
+    pts = pts[~on_edge]
+    if len(pts) < 5:
+        return 0.0
+    a = np.column_stack([2 * pts, np.ones(len(pts))])
+    (cx, cy, c), *_ = np.linalg.lstsq(a, (pts ** 2).sum(axis=1), rcond=None)
+    r = float(np.sqrt(max(c + cx * cx + cy * cy, 0.0)))
+    if r < 2:
+        return 0.0
+    resid = float(np.median(np.abs(np.hypot(pts[:, 0] - cx, pts[:, 1] - cy) - r))) / r
+    size = _unit(1.0 - abs(2 * r / max(w, h) - 1.0) / 0.6) if 2 * r > max(w, h) else 1.0
+    return 0.7 * _unit(1.0 - resid / 0.12) * size
+
+
+@dataclass(frozen=True)
+class _Ctx:
+    """Per-frame constants of the blob search."""
+
+    params: ProposalParams
+    W: int
+    H: int
+    min_size: int
+    kernel: np.ndarray | None  # closing kernel, None = no closing
+    ring_kernel: np.ndarray | None  # the wider one of the extra red pass
+    hsv: np.ndarray  # the frame, for looking inside ring interiors
+
+
+def _make_ctx(hsv: np.ndarray, params: ProposalParams) -> _Ctx:
+    H, W = hsv.shape[:2]
+    min_size = params.min_size
+    if params.min_size_frac > 0:  # scale with the frame, but never ask for more than min_size
+        min_size = max(4, min(params.min_size, int(round(params.min_size_frac * H))))
+    return _Ctx(params, W, H, min_size, _disc(params.close_px, H), _disc(params.ring_close_px, H), hsv)
+
+
+def _disc(px_at_480: int, H: int) -> np.ndarray | None:
+    k = int(round(px_at_480 * H / 480)) if px_at_480 > 0 else 0
+    return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)) if k > 1 else None
+
+
+def _size_ok(x: int, y: int, w: int, h: int, ctx: _Ctx) -> bool:
+    p = ctx.params
+    if w < ctx.min_size or h < ctx.min_size or w > p.max_frac * ctx.W or h > p.max_frac * ctx.H:
+        return False
+    border = x <= 0 or y <= 0 or x + w >= ctx.W or y + h >= ctx.H
+    return max(w, h) <= (p.border_aspect if border else p.max_aspect) * min(w, h)
+
+
+def _components(mask: np.ndarray, color: str, ctx: _Ctx) -> list[_Blob]:
+    """S1's blobs: connected components of the mask, boxes straight from the stats."""
+    n, _, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=ctx.params.connectivity)
+    boxes = [tuple(int(v) for v in st[:4]) for st in stats[1:n]]
+    return [_Blob(b, color, 1.0) for b in boxes if _size_ok(*b, ctx)]
+
+
+def _level_mask(hue_ok: np.ndarray, sat: np.ndarray, s_min: int, roi: tuple[int, int, int, int],
+                kernel: np.ndarray | None) -> np.ndarray:
+    x0, y0, x1, y1 = roi
+    _, mask = cv2.threshold(sat[y0:y1, x0:x1], s_min - 1, 255, cv2.THRESH_BINARY)
+    mask = cv2.bitwise_and(mask, hue_ok[y0:y1, x0:x1])
+    return mask if kernel is None else cv2.morphologyEx(mask, cv2.MORPH_CLOSE, kernel)
+
+
+def _search(hue_ok: np.ndarray, sat: np.ndarray, s_min: int, roi: tuple[int, int, int, int], color: str,
+            ctx: _Ctx, depth: int, out: list[_Blob]) -> None:
+    """Outer contours (holes filled) of `hue_ok & sat >= s_min` inside roi (x0, y0, x1, y1).
+
+    A blob that is not a confident sign is searched again inside its own box one saturation step
+    up: a sign glued to a paler background of its colour (sky behind a blue disc, a red wall
+    behind a ring) separates from it at some level, while a lone faded sign is found at the first.
+    """
+    p = ctx.params
+    mask = _level_mask(hue_ok, sat, s_min, roi, ctx.kernel)
+    rings = p.ring_holes and color == "red"
+    mode = cv2.RETR_CCOMP if rings else cv2.RETR_EXTERNAL
+    contours, hier = cv2.findContours(mask, mode, cv2.CHAIN_APPROX_SIMPLE, offset=roi[:2])
+    for i, c in enumerate(contours):
+        # specks have < 4 points or are holes, looked at through their parent below
+        if len(c) < 4 or hier[0, i, 3] >= 0:
+            continue
+        x, y, w, h = cv2.boundingRect(c)
+        if w < ctx.min_size or h < ctx.min_size:
+            continue
+        score = 0.0
+        if _size_ok(x, y, w, h, ctx):
+            border = x <= 0 or y <= 0 or x + w >= ctx.W or y + h >= ctx.H
+            score = _shape_score(c, w, h, (ctx.W, ctx.H) if border else None) if p.shape_score else 1.0
+            if score >= p.min_score:
+                out.append(_Blob((x, y, w, h), color, score))
+        if rings:  # even a confident blob: a ring glued to a wall can make a round-ish whole
+            out += _rings_in_holes(contours, hier[0], i, ctx)
+        if score < p.confident and depth < p.max_depth and s_min + p.s_step <= 255:
+            _search(hue_ok, sat, s_min + p.s_step, (x, y, x + w, y + h), color, ctx, depth + 1, out)
+
+
+def _closed_rings(hue_ok: np.ndarray, sat: np.ndarray, s_min: int, ctx: _Ctx) -> list[_Blob]:
+    """Thin, faded rings break into arcs that no level joins. A wide closing joins them; a blob
+    then counts only if it encloses a hole nearly its own size (the ring's interior), so that
+    the wide closing does not add merged clutter. Scored a little below the plain search."""
+    mask = _level_mask(hue_ok, sat, s_min, (0, 0, ctx.W, ctx.H), ctx.ring_kernel)
+    contours, hier = cv2.findContours(mask, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_SIMPLE)
+    out = []
+    for i, c in enumerate(contours):
+        parent = hier[0, i, 3]
+        if parent < 0 or len(c) < 4:  # walk the holes; their parent is the ring
+            continue
+        _, _, hw, hh = cv2.boundingRect(c)
+        x, y, w, h = cv2.boundingRect(contours[parent])
+        if hw >= 0.5 * w and hh >= 0.5 * h and _size_ok(x, y, w, h, ctx):
+            score = 0.9 * _shape_score(contours[parent], w, h)
+            if score >= ctx.params.min_score:
+                out.append(_Blob((x, y, w, h), "red", score))
+    return out
+
+
+def _rings_in_holes(contours, hier: np.ndarray, parent: int, ctx: _Ctx) -> list[_Blob]:
+    """Ring signs glued to a red background: their pale interior is a hole of the red blob, cut in
+    two by the slash. Overlapping holes are joined; a round cluster, pale but holding a dark arrow
+    (which tells it from the white text of a stop sign), gives the sign's box: the interior grown
+    by a typical ring width."""
+    holes = []
+    j = hier[parent, 2]
+    while j >= 0:
+        if len(contours[j]) >= 4:  # specks are no ring interiors
+            b = cv2.boundingRect(contours[j])
+            if min(b[2], b[3]) >= 0.5 * ctx.min_size:
+                holes.append((j, b))
+        j = hier[j, 0]
+    out = []
+    for members in _overlapping_groups(holes):
+        pts = np.concatenate([contours[k] for k in members])
+        x, y, w, h = cv2.boundingRect(pts)
+        score = 0.9 * _shape_score(cv2.convexHull(pts), w, h)
+        if score < ctx.params.min_score or not _ring_interior(contours, members, (x, y, w, h), ctx.hsv):
+            continue
+        gx, gy = int(round(w * RING_GROW)), int(round(h * RING_GROW))
+        box = (x - gx, y - gy, w + 2 * gx, h + 2 * gy)
+        if _size_ok(*box, ctx):
+            out.append(_Blob(box, "red", score))
+    return out
+
+
+def _overlapping_groups(holes: list[tuple[int, tuple[int, int, int, int]]]) -> list[list[int]]:
+    """Contour indices grouped by overlapping boxes (greedy, largest first)."""
+    groups: list[tuple[list[int], list[int]]] = []  # (members, [x0, y0, x1, y1])
+    for j, (x, y, w, h) in sorted(holes, key=lambda t: -t[1][2] * t[1][3]):
+        for members, g in groups:
+            if x < g[2] and g[0] < x + w and y < g[3] and g[1] < y + h:
+                members.append(j)
+                g[:] = [min(g[0], x), min(g[1], y), max(g[2], x + w), max(g[3], y + h)]
+                break
+        else:
+            groups.append(([j], [x, y, x + w, y + h]))
+    return [m for m, _ in groups]
+
+
+def _ring_interior(contours, members: list[int], box: tuple[int, int, int, int], hsv: np.ndarray) -> bool:
+    """Are the hole pixels mostly pale (low S) with a darker part (the arrow)?"""
+    x, y, w, h = box
+    m = np.zeros((h, w), np.uint8)
+    cv2.drawContours(m, [contours[k] for k in members], -1, 255, -1, offset=(-x, -y))
+    px = hsv[y:y + h, x:x + w][m > 0]
+    if len(px) < 8:
+        return False
+    v5, v50 = np.percentile(px[:, 2], [5, 50])
+    return float(np.median(px[:, 1])) <= 60 and v5 <= 0.8 * v50
+
+
+def box_iou(a: tuple[int, int, int, int], b: tuple[int, int, int, int]) -> float:
+    """Intersection over union of two (x, y, w, h) boxes."""
+    ix = min(a[0] + a[2], b[0] + b[2]) - max(a[0], b[0])
+    iy = min(a[1] + a[3], b[1] + b[3]) - max(a[1], b[1])
+    if ix <= 0 or iy <= 0:
+        return 0.0
+    inter = ix * iy
+    return inter / float(a[2] * a[3] + b[2] * b[3] - inter)
+
+
+def _nms(blobs: list[_Blob], iou: float, cap: int) -> list[_Blob]:
+    """Greedy NMS by score; `iou` <= 0 keeps all, `cap` <= 0 is no cap."""
+    order = sorted(blobs, key=lambda b: -b.score)
+    keep: list[_Blob] = []
+    for b in order:
+        if iou > 0 and any(box_iou(b.box, k.box) > iou for k in keep):
+            continue
+        keep.append(b)
+        if 0 < cap <= len(keep):
+            break
+    return keep
+
+
+def _pad(box: tuple[int, int, int, int], frac: float, W: int, H: int) -> tuple[int, int, int, int]:
+    x, y, w, h = box
+    px, py = int(round(w * frac)), int(round(h * frac))
+    x0, y0 = max(0, x - px), max(0, y - py)
+    x1, y1 = min(W, x + w + px), min(H, y + h + py)
+    return x0, y0, x1 - x0, y1 - y0
+
+
+def _color_of(red: np.ndarray, blue: np.ndarray, box: tuple[int, int, int, int]) -> str:
+    """Colour tag of a union-mask blob (S1 mode): the colour with more mask pixels in its box."""
+    x, y, w, h = box
+    n_red = cv2.countNonZero(red[y:y + h, x:x + w])
+    return "blue" if cv2.countNonZero(blue[y:y + h, x:x + w]) > n_red else "red"
+
+
+def propose(image_bgr: np.ndarray, params: ProposalParams | None = None) -> list[SignDetection]:
+    """Sign proposals in a uint8 ``(H, W, 3)`` BGR image (a 2-D grey image is accepted).
+
+    Returns :class:`SignDetection`\\ s with label ``"unknown"``, ``color`` ``"red"`` or ``"blue"``,
+    ``score`` in [0, 1] (shape confidence; 1.0 when shape scoring is off) and ``box`` (x, y, w, h)
+    int pixels, padded by ``params.pad_frac`` and clipped to the frame, best score first.
+    """
+    params = params or ProposalParams()
+    img = _as_bgr(image_bgr)
+    H, W = img.shape[:2]
+    if H == 0 or W == 0:
+        return []
+    hsv = _hsv(img, params)
+    ctx = _make_ctx(hsv, params)
+    specs = _color_specs(params, hsv)
+    blobs: list[_Blob] = []
+    if params.separate_colors:
+        sat = np.ascontiguousarray(hsv[:, :, 1])
+        chroma_ok = _chroma_mask(hsv, params.chroma_min * _scales(hsv, params)[1])
+        for color, hues, s_min, v_min in specs:
+            hue_ok = _hue_mask(hsv, hues, 0, v_min)
+            if chroma_ok is not None:
+                hue_ok = cv2.bitwise_and(hue_ok, chroma_ok)
+            _search(hue_ok, sat, s_min, (0, 0, W, H), color, ctx, 0, blobs)
+            if color == "red" and ctx.ring_kernel is not None:
+                blobs += _closed_rings(hue_ok, sat, s_min, ctx)
+    else:  # S1: one union mask, colour decided afterwards
+        masks = {c: _hue_mask(hsv, hues, s, v) for c, hues, s, v in specs}
+        union = cv2.bitwise_or(masks["red"], masks["blue"])
+        if ctx.kernel is not None:
+            union = cv2.morphologyEx(union, cv2.MORPH_CLOSE, ctx.kernel)
+        for b in _components(union, "", ctx):
+            blobs.append(replace(b, color=_color_of(masks["red"], masks["blue"], b.box)))
+    kept = _nms(blobs, params.nms_iou, params.max_proposals)
+    return [SignDetection("unknown", round(b.score, 4), _pad(b.box, params.pad_frac, W, H), b.color) for b in kept]

@@ -1,0 +1,168 @@
+"""S2 sliding-window on seeded rendered frames: finds the lane, signs of offset/heading/curvature,
+tracking with state, the published baseline, degenerate inputs."""
+import math
+
+import numpy as np
+import pytest
+
+from signlane import lanes
+from signlane.lanes.bev_marking import pick_ego_pair, ridge_mask
+from signlane.lanes.sliding_window import SlidingWindowParams, SlidingWindowState
+from signlane.world.sampling import DriveSampler, FrameSampler, SamplerConfig
+
+NAME = "sliding-window"
+CLEAN = SamplerConfig(effects="clean", randomise=False)
+
+
+@pytest.fixture(scope="module")
+def clean_frames():
+    smp = FrameSampler(7, CLEAN)
+    return [smp.sample(i) for i in range(12)]
+
+
+@pytest.fixture(scope="module")
+def drive():
+    """A clean drive whose route has a straight, a right bend and a left bend."""
+    return DriveSampler(4, CLEAN)
+
+
+def _find(route, pred, length_m: float) -> float:
+    """First arc length s whose next length_m of route satisfies pred(curvature array)."""
+    for s in np.arange(5.0, route.length - 60.0, 1.0):
+        window = (route.s >= s) & (route.s <= s + length_m)
+        if pred(route.curvature[window]):
+            return float(s)
+    raise AssertionError("route has no such stretch")
+
+
+@pytest.fixture(scope="module")
+def stretches(drive):
+    r = drive.route
+    return {"straight": _find(r, lambda k: np.all(np.abs(k) < 1e-4), 25.0),
+            "right": _find(r, lambda k: np.all(k > 0.015), 12.0),
+            "left": _find(r, lambda k: np.all(k < -0.015), 12.0)}
+
+
+def _run(sample, camera=None, **kw):
+    return lanes.get(NAME, camera=camera or sample.truth.nominal_camera, **kw)(sample.image)
+
+
+def test_finds_the_lane_on_clean_frames(clean_frames):
+    errs = []
+    for smp in clean_frames:
+        est = _run(smp)
+        assert est.found
+        assert 0.0 < est.confidence <= 1.0
+        errs.append(abs(est.offset - smp.truth.offset))
+    errs = np.array(errs)
+    assert np.median(errs) < 0.05
+    assert np.mean(errs < 0.1) >= 10 / 12  # a tight bend or two may miss the far line
+
+
+@pytest.mark.parametrize("lateral, sign", [(0.8, 1), (-0.8, -1)])
+def test_offset_sign_follows_the_cars_displacement(drive, stretches, lateral, sign):
+    smp = drive.renderer.render_on_route(drive.route, stretches["straight"], drive.camera, lateral_m=lateral)
+    est = _run(smp, drive.camera)
+    assert est.found and np.sign(est.offset) == sign
+    assert est.offset == pytest.approx(smp.truth.offset, abs=0.1)
+
+
+@pytest.mark.parametrize("heading", [0.1, -0.1])
+def test_heading_sign_follows_the_heading_offset(drive, stretches, heading):
+    smp = drive.renderer.render_on_route(drive.route, stretches["straight"], drive.camera, heading_offset=heading)
+    est = _run(smp, drive.camera)
+    assert est.found and np.sign(est.heading) == np.sign(heading) == np.sign(smp.truth.heading)
+    assert est.heading == pytest.approx(smp.truth.heading, abs=0.05)
+
+
+@pytest.mark.parametrize("bend, sign", [("right", 1), ("left", -1)])
+def test_curvature_sign_on_a_bend(drive, stretches, bend, sign):
+    smp = drive.renderer.render_on_route(drive.route, stretches[bend] - 2.0, drive.camera)
+    est = _run(smp, drive.camera)
+    assert est.found and np.sign(est.curvature) == sign == np.sign(smp.truth.curvature)
+    assert 0.005 < abs(est.curvature) < 0.1
+
+
+def test_tracking_uses_the_previous_fit(drive):
+    method = lanes.get(NAME, camera=drive.camera)
+    errs, tracked = [], []
+    for i in range(16):
+        smp = drive.sample(i)
+        est = method(smp.image)
+        assert est.found
+        assert isinstance(method.state, SlidingWindowState)
+        tracked.append(method.state.tracked)
+        errs.append(abs(est.offset - smp.truth.offset))
+    assert not tracked[0]  # the first frame has no previous fit: histogram search
+    assert all(tracked[1:])  # every later frame searched around the last fit
+    assert max(errs) < 0.1
+
+
+def test_tracking_recovers_from_a_wrong_previous_fit(clean_frames):
+    """A stale state far from the lines finds nothing around it; the histogram search takes over."""
+    smp = clean_frames[0]
+    far = lanes.get(NAME, camera=smp.truth.nominal_camera)
+    far(smp.image)
+    stale = far.state
+    moved = type(stale.left)(stale.left.coeffs + (0.0, 0.0, 20.0), stale.left.y_range, 0)
+    method = lanes.get(NAME, camera=smp.truth.nominal_camera)
+    method.state = SlidingWindowState(moved, None, stale.lane_width_m)
+    est = method(smp.image)
+    assert est.found and not method.state.tracked
+    assert est.offset == pytest.approx(smp.truth.offset, abs=0.1)
+
+
+def test_published_variant_runs_and_its_tracking_too(drive, stretches):
+    params = lanes.params_for(NAME, "published")
+    assert params == SlidingWindowParams.published() and params.binary == "sobel-s"
+    method = lanes.get(NAME, camera=drive.camera, variant="published")
+    smp = drive.renderer.render_on_route(drive.route, stretches["straight"], drive.camera)
+    est = method(smp.image)
+    assert est.found and est.method == NAME
+    assert est.offset == pytest.approx(smp.truth.offset, abs=0.25)
+    method(smp.image)
+    assert method.state.tracked
+
+
+def test_debug_mask_is_the_paint_it_used(clean_frames):
+    smp = clean_frames[1]
+    est = _run(smp)
+    mask = est.debug_mask
+    assert mask.dtype == np.uint8 and mask.shape == smp.image.shape[:2] and set(np.unique(mask)) <= {0, 255}
+    on_paint = (mask > 0) & (smp.truth.marking_mask > 0)
+    assert (mask > 0).sum() > 50 and on_paint.sum() / (mask > 0).sum() > 0.5
+
+
+def test_black_image_is_not_found():
+    est = lanes.get(NAME)(np.zeros((240, 320, 3), np.uint8))
+    assert not est.found and est.confidence == 0.0
+    assert est.debug_mask.shape == (240, 320) and not est.debug_mask.any()
+
+
+@pytest.mark.parametrize("shape", [(1, 1, 3), (8, 12, 3), (20, 30, 3), (2, 200, 3), (48, 64), (120, 160, 3)])
+def test_small_or_odd_images_do_not_crash(clean_frames, shape):
+    img = np.full(shape, 90, np.uint8) if len(shape) == 2 else np.ascontiguousarray(
+        clean_frames[0].image[: shape[0], : shape[1]])
+    for variant in ("robust", "published"):
+        est = lanes.get(NAME, variant=variant)(img)
+        assert est.debug_mask.shape == img.shape[:2]
+        assert 0.0 <= est.confidence <= 1.0 and math.isfinite(est.offset)
+
+
+def test_ego_pair_prefers_a_lane_width_pair_around_the_car():
+    # centre line, right edge line, the far-left edge of a two-lane road, and a stray mark
+    assert pick_ego_pair([-1.6, 1.7, -4.9, 0.6], [0.6, 1.0, 1.0, 0.3], 3.2)[:2] == (0, 1)
+    # no centre line: the far edge pairs as 'wide' with the right edge line
+    assert pick_ego_pair([-4.9, 1.7], [1.0, 1.0], 3.2) == (0, 1, "wide")
+    assert pick_ego_pair([1.5], [0.8], 3.2) == (None, 0, "single")
+    assert pick_ego_pair([6.0], [0.8], 3.2) is None
+
+
+def test_ridge_mask_keeps_stripes_not_shadow_edges():
+    img = np.full((40, 120, 3), 100, np.uint8)
+    img[:, 60:] = 50  # a shadow border: a step, not paint
+    img[:, 20:23] = 220  # a white stripe
+    img[:, 90:93] = (40, 190, 230)  # a yellow stripe in the shadow (BGR)
+    valid = np.full(img.shape[:2], 255, np.uint8)
+    cols = np.flatnonzero(ridge_mask(img, valid, 6, 0.08, 8.0, 3).any(axis=0))
+    assert set(cols) == {20, 21, 22, 90, 91, 92}

@@ -1,0 +1,103 @@
+"""Sign classifier: smoke training -> ONNX export -> onnxruntime parity, and model-file errors."""
+import json
+
+import cv2
+import numpy as np
+import onnx
+import pytest
+
+from signlane.onnx_model import ModelError, make_metadata
+from signlane.signs.classifier import DEFAULT_SPEC, TASK, SignClassifier, preprocess_crops
+from signlane.signs.confirm import SignConfirmer
+from signlane.types import SignDetection
+from signlane.world.art import SIGN_CLASSES
+
+
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory):
+    """A 1-epoch run on a tiny generated crop set, exported to ONNX (int8 too)."""
+    from data_gen.signs import generate_signs
+    from export.signs import export_signs
+    from train.signs import train_signs
+    root = tmp_path_factory.mktemp("signs")
+    generate_signs(root / "data", 140, seed=5, crop=32)
+    report = train_signs([root / "data"], root / "run", epochs=1, batch_size=32, quiet=True)
+    onnx_path = root / "signs.onnx"
+    exported = export_signs(report["best_checkpoint"], onnx_path, int8=True)
+    return root, report, onnx_path, exported
+
+
+def test_smoke_training_writes_its_outputs(trained):
+    root, report, _, _ = trained
+    run = root / "run"
+    for name in ("checkpoints/last.ckpt", "config.json", "confusion.png"):
+        assert (run / name).exists(), name
+    assert list((run / "logs").rglob("metrics.csv")) and list((run / "tensorboard").rglob("events.*"))
+    assert 0.0 <= report["accuracy"] <= 1.0 and set(report["recall"]) == set(SIGN_CLASSES)
+
+
+def test_export_matches_torch_and_carries_its_contract(trained):
+    root, report, onnx_path, exported = trained
+    assert exported["parity_max_abs"] <= 1e-4
+    model = onnx.load(str(onnx_path))
+    onnx.checker.check_model(model)
+    meta = {p.key: p.value for p in model.metadata_props}
+    assert meta["signlane.task"] == TASK and json.loads(meta["signlane.classes"]) == list(SIGN_CLASSES)
+    # dynamic batch: the runtime classifies 1 and 37 crops in one go each
+    clf = SignClassifier(onnx_path)
+    crops = [cv2.imread(str(p)) for p in sorted((root / "data").rglob("*.png"))[:37]]
+    assert clf.probabilities(crops[:1]).shape == (1, 7) and clf.probabilities(crops).shape == (37, 7)
+    # the runtime's preprocessing fed to torch gives the ONNX answer (one preprocessing path)
+    import torch
+    from train.sign_task import SignTask
+    task = SignTask.load_from_checkpoint(report["best_checkpoint"], map_location="cpu").eval()
+    with torch.no_grad():
+        ref = torch.softmax(task(torch.from_numpy(preprocess_crops(crops, DEFAULT_SPEC))), 1).numpy()
+    assert np.max(np.abs(ref - clf.probabilities(crops))) < 1e-4
+    assert "accuracy_drop" in exported["int8"] and (root / "signs_int8.onnx").exists()
+
+
+def test_missing_corrupt_and_foreign_models_give_clear_errors(tmp_path, trained):
+    _, _, onnx_path, _ = trained
+    with pytest.raises(ModelError, match="not found"):
+        SignClassifier(tmp_path / "none.onnx")
+    bad = tmp_path / "bad.onnx"
+    bad.write_bytes(b"garbage" * 100)
+    with pytest.raises(ModelError, match="not a loadable ONNX model"):
+        SignClassifier(bad)
+    model = onnx.load(str(onnx_path))
+    for key, value, match in [("signlane.task", "lane-segmentation", "expected 'sign-classifier'"),
+                              ("signlane.contract", "99", "contract '99' is not supported"),
+                              ("signlane.classes", "not json", "'classes' is missing"),
+                              ("signlane.input", '{"size": [32]}', "'input' is malformed")]:
+        m = onnx.ModelProto()
+        m.CopyFrom(model)
+        for p in m.metadata_props:
+            if p.key == key:
+                p.value = value
+        path = tmp_path / f"meta_{key.split('.')[-1]}.onnx"
+        onnx.save(m, str(path))
+        with pytest.raises(ModelError, match=match):
+            SignClassifier(path)
+
+
+def test_metadata_without_unknown_class_is_refused(tmp_path, trained):
+    _, _, onnx_path, _ = trained
+    m = onnx.load(str(onnx_path))
+    meta = make_metadata(TASK, ["a", "b", "c", "d", "e", "f", "g"], DEFAULT_SPEC, "x", {})
+    for p in m.metadata_props:
+        if p.key in meta:
+            p.value = meta[p.key]
+    path = tmp_path / "nounknown.onnx"
+    onnx.save(m, str(path))
+    with pytest.raises(ModelError, match="lack 'unknown'"):
+        SignClassifier(path)
+
+
+def test_confirmation_needs_n_of_m_frames():
+    c = SignConfirmer(3, 5)
+    stop = SignDetection("stop", 0.9, (10, 10, 30, 30))
+    seen = [c.step([stop] if k in (0, 2, 4) else []) for k in range(5)]
+    assert [len(s) for s in seen] == [0, 0, 0, 0, 1]  # confirmed on its third sighting in five frames
+    c.reset()
+    assert all(not c.step([stop] if k % 3 == 0 else []) for k in range(9))  # one in three never confirms

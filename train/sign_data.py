@@ -1,0 +1,111 @@
+"""Sign-crop data for training: ImageFolder folders from `signlane gen signs` (or autolabel).
+
+Class indices follow the VIA class order (not alphabetical folder order). Augmentation runs on
+uint8 BGR crops with albumentations; then the runtime's own `preprocess_crops` makes the input,
+so training sees exactly what the car's classifier will see.
+"""
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+
+import albumentations as A
+import cv2
+import lightning as L
+import numpy as np
+import torch
+from torch.utils.data import DataLoader, Dataset
+
+from signlane.onnx_model import InputSpec
+from signlane.signs.classifier import DEFAULT_SPEC, preprocess_crops
+from signlane.world.art import SIGN_CLASSES
+
+IMAGE_EXT = {".png", ".jpg", ".jpeg", ".bmp"}
+
+
+def list_crops(roots: list[Path], classes: tuple[str, ...] = SIGN_CLASSES) -> list[tuple[Path, int]]:
+    """(path, class index) for every crop under <root>/<class>/; unknown folders are an error."""
+    items = []
+    for root in roots:
+        root = Path(root)
+        if not root.is_dir():
+            raise ValueError(f"{root}: not a folder of class folders")
+        for d in sorted(p for p in root.iterdir() if p.is_dir()):
+            if d.name not in classes:
+                raise ValueError(f"{d}: folder name is not a class ({', '.join(classes)})")
+            items += [(f, classes.index(d.name)) for f in sorted(d.iterdir()) if f.suffix.lower() in IMAGE_EXT]
+    if not items:
+        raise ValueError(f"no crops found under {', '.join(map(str, roots))}")
+    return items
+
+
+def split_of(path: Path, val_fraction: float) -> str:
+    """A stable train/val split by file name hash (the same file always lands on the same side)."""
+    h = int(hashlib.sha1(f"{path.parent.name}/{path.name}".encode()).hexdigest()[:8], 16)
+    return "val" if (h % 10000) / 10000.0 < val_fraction else "train"
+
+
+def train_augment() -> A.Compose:
+    """Appearance far beyond the renderer's: other cameras, printers, light and weather.
+    No flips (left/right would swap) and small hue shifts (blue must stay blue, red red)."""
+    return A.Compose([
+        A.Affine(scale=(0.8, 1.15), translate_percent=(-0.1, 0.1), rotate=(-12, 12), shear=(-8, 8), p=0.8),
+        A.Perspective(scale=(0.02, 0.1), p=0.4),
+        A.RandomBrightnessContrast(brightness_limit=0.35, contrast_limit=0.35, p=0.8),
+        A.RandomGamma(gamma_limit=(60, 160), p=0.4),
+        A.HueSaturationValue(hue_shift_limit=8, sat_shift_limit=40, val_shift_limit=30, p=0.6),
+        A.ToGray(p=0.03),
+        A.OneOf([A.MotionBlur(blur_limit=(3, 7)), A.GaussianBlur(sigma_limit=(0.3, 1.5))], p=0.35),
+        A.GaussNoise(std_range=(0.01, 0.08), p=0.35),
+        A.CoarseDropout(num_holes_range=(1, 2), hole_height_range=(0.1, 0.3), hole_width_range=(0.1, 0.3), p=0.2),
+        A.ImageCompression(quality_range=(20, 95), p=0.4),
+    ])
+
+
+class CropDataset(Dataset):
+    def __init__(self, items: list[tuple[Path, int]], spec: InputSpec, augment: A.Compose | None = None):
+        self.items, self.spec, self.augment = items, spec, augment
+
+    def __len__(self) -> int:
+        return len(self.items)
+
+    def __getitem__(self, i: int):
+        path, label = self.items[i]
+        img = cv2.imread(str(path), cv2.IMREAD_COLOR)
+        if img is None:
+            raise ValueError(f"{path}: unreadable crop")
+        if self.augment is not None:
+            img = self.augment(image=img)["image"]
+        x = preprocess_crops([img], self.spec)[0]
+        return torch.from_numpy(x), label
+
+
+class SignDataModule(L.LightningDataModule):
+    def __init__(self, roots: list[str | Path], batch_size: int = 128, val_fraction: float = 0.1,
+                 spec: InputSpec = DEFAULT_SPEC, workers: int = 0):
+        super().__init__()
+        self.roots = [Path(r) for r in roots]
+        self.batch_size, self.val_fraction, self.spec, self.workers = batch_size, val_fraction, spec, workers
+
+    def setup(self, stage: str | None = None) -> None:
+        items = list_crops(self.roots)
+        self.train_items = [it for it in items if split_of(it[0], self.val_fraction) == "train"]
+        self.val_items = [it for it in items if split_of(it[0], self.val_fraction) == "val"]
+        if not self.train_items or not self.val_items:
+            raise ValueError(f"need crops on both sides of the split; got {len(self.train_items)} train, "
+                             f"{len(self.val_items)} val")
+
+    def class_weights(self) -> torch.Tensor:
+        """Inverse-frequency weights for the cross-entropy (balanced classes in expectation)."""
+        counts = np.bincount([label for _, label in self.train_items], minlength=len(SIGN_CLASSES)).astype(float)
+        w = counts.sum() / np.maximum(counts, 1.0) / len(SIGN_CLASSES)
+        return torch.tensor(w, dtype=torch.float32)
+
+    def train_dataloader(self) -> DataLoader:
+        return DataLoader(CropDataset(self.train_items, self.spec, train_augment()), batch_size=self.batch_size,
+                          shuffle=True, num_workers=self.workers, persistent_workers=self.workers > 0,
+                          drop_last=len(self.train_items) > 2 * self.batch_size)
+
+    def val_dataloader(self) -> DataLoader:
+        return DataLoader(CropDataset(self.val_items, self.spec), batch_size=256, num_workers=self.workers,
+                          persistent_workers=self.workers > 0)
