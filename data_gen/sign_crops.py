@@ -206,7 +206,7 @@ def _occlude(img: np.ndarray, face: Box, rng: np.random.Generator) -> None:
 
 def _camera_look(img: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """Exposure, colour cast and JPEG of another camera; uint8 BGR in and out."""
-    gain = 2.0 ** rng.normal(0, 0.45)
+    gain = float(np.clip(2.0 ** rng.normal(0, 0.45), 0.4, 2.2))  # beyond this a sign is a white or black patch
     cast = 1.0 + rng.normal(0, 0.08, 3)
     out = np.clip(img.astype(np.float32) * gain * cast, 0, 255).astype(np.uint8)
     if rng.random() < 0.4:

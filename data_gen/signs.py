@@ -131,13 +131,13 @@ def generate_signs(out: str | Path, n: int, seed: int, crop: int = 48, workers: 
                    preview: bool = False, unknown_fraction: float = 0.3, frames: int | None = None) -> dict:
     """Write about `n` sign crops (`class_targets`; more where frames alone give more) to `out`
     in ImageFolder layout and return the manifest, whose `counts` holds the crops per class.
-    `frames` (default n // 2) rendered frames supply the real crops. Raises DatasetError if
+    `frames` (default n // 4) rendered frames supply the real crops. Raises DatasetError if
     `out` is not empty and is not this dataset or, without `resume`, holds an unfinished run."""
     if n < 1 or crop < 8 or not 0.0 <= unknown_fraction <= 1.0:
         raise ValueError(f"need n >= 1, crop >= 8 and 0 <= unknown_fraction <= 1 (got {n}, {crop}, "
                          f"{unknown_fraction})")
     out = Path(out)
-    frames = max(1, n // 2) if frames is None else int(frames)
+    frames = max(1, n // 4) if frames is None else int(frames)
     sampler = SamplerConfig(width=FRAME_SIZE[0], height=FRAME_SIZE[1], effects="mixed", randomise=True,
                             focus="signs")
     config = signs_config(n, seed, crop, unknown_fraction, frames, sampler)

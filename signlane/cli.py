@@ -251,6 +251,9 @@ def _add_eval(sub) -> None:
                                         "false proposals per frame.")
     prop.add_argument("--min-size", type=int, default=20, help="smallest sign side counted, px (default 20)")
     prop.add_argument("--size", type=_size, default=(640, 480), help="frame size WxH (default 640x480)")
+    prop.add_argument("--focus", choices=["signs", "none"], default="signs",
+                      help="signs (default): each frame 4-45 m before a sign, so the set holds enough signs; "
+                           "none: anywhere on the track")
     signs = kinds.add_parser("signs", help="sign classifier accuracy on a crop set",
                              description="Accuracy, per-class recall and non-sign acceptance of the ONNX sign "
                                          "classifier on an ImageFolder crop set (make a fresh one with "
@@ -287,7 +290,8 @@ def _run_eval(args) -> int:
         return 0
     from signlane.draw import write_image
     from signlane.signs import eval_proposals as ep
-    rows = ep.eval_many(args.n, args.seed, args.hard, variants, args.min_size, *args.size, progress=True)
+    rows = ep.eval_many(args.n, args.seed, args.hard, variants, args.min_size, *args.size, progress=True,
+                        focus=args.focus)
     print(ep.format_table(rows))
     if args.csv:
         ep.write_csv(args.csv, rows)
@@ -406,6 +410,35 @@ def _run_classify(args) -> int:
     return 1 if failed else 0
 
 
+# --- autolabel ---------------------------------------------------------------------------------
+def _add_autolabel(sub) -> None:
+    p = sub.add_parser("autolabel", help="label your own images with the classical stages + current models",
+                       description="Turn your own images and videos into a reviewable training set.")
+    kinds = p.add_subparsers(dest="kind", required=True, metavar="{signs}")
+    signs = kinds.add_parser("signs", help="sign crops foldered by the classifier (review, then train on them)",
+                             description="Run the colour-mask proposals and the current sign classifier on "
+                                         "your images/videos; write each proposal's crop to <out>/<label>/ "
+                                         "(ImageFolder) and a contact sheet per class (sheet_<label>.png). Move "
+                                         "wrong crops to the right folder, then `signlane train signs` on it.")
+    signs.add_argument("paths", nargs="+", help="images, videos or folders")
+    signs.add_argument("--out", type=Path, required=True, help="output folder")
+    signs.add_argument("--model", type=Path, help="classifier ONNX (default: the shipped one, if present)")
+    signs.add_argument("--every", type=_positive, default=10, help="every Nth video frame (default 10)")
+    signs.add_argument("--size", type=_positive, default=48, help="crop size in pixels (default 48)")
+    p.set_defaults(func=_run_autolabel)
+
+
+def _run_autolabel(args) -> int:
+    from signlane.autolabel import autolabel_signs
+    from signlane.onnx_model import ModelError
+    try:
+        report = autolabel_signs(args.paths, args.out, args.model, args.every, args.size)
+    except ModelError as e:
+        raise UserError(str(e)) from None
+    print(json.dumps({"out": str(args.out), "counts": report["counts"], "model": report["model"]}))
+    return 1 if report["failed"] else 0
+
+
 # --- main --------------------------------------------------------------------------------------
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="signlane",
@@ -414,7 +447,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--version", action="version", version=f"signlane {__version__}")
     p.add_argument("-v", "--verbose", action="store_true", help="debug logging")
     sub = p.add_subparsers(dest="command", required=True, metavar="<command>")
-    for add in (_add_infer, _add_eval, _add_gen, _add_train, _add_export, _add_classify, _add_demo, _add_map):
+    for add in (_add_infer, _add_eval, _add_gen, _add_train, _add_export, _add_classify, _add_autolabel, _add_demo,
+                _add_map):
         add(sub)
     return p
 

@@ -24,6 +24,7 @@ def atomic_write_bytes(path: str | Path, data: bytes, fsync: bool = False) -> No
 
     `fsync` also survives power loss; it is slow, so only the manifest asks for it."""
     path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
     tmp = _tmp_name(path)
     try:
         with open(tmp, "wb") as f:

@@ -101,3 +101,21 @@ def test_confirmation_needs_n_of_m_frames():
     assert [len(s) for s in seen] == [0, 0, 0, 0, 1]  # confirmed on its third sighting in five frames
     c.reset()
     assert all(not c.step([stop] if k % 3 == 0 else []) for k in range(9))  # one in three never confirms
+
+
+def test_autolabel_files_proposals_by_the_classifier_and_draws_sheets(tmp_path, trained, capsys):
+    from signlane.cli import main
+    from signlane.world.sampling import FrameSampler, SamplerConfig
+    _, _, onnx_path, _ = trained
+    sampler = FrameSampler(5, SamplerConfig(width=640, height=480, focus="signs", effects="clean"))
+    for i in range(4):
+        cv2.imwrite(str(tmp_path / f"f{i}.png"), sampler.sample(i).image)
+    (tmp_path / "broken.png").write_bytes(b"nope")
+    out = tmp_path / "labelled"
+    code = main(["autolabel", "signs", str(tmp_path), "--out", str(out), "--model", str(onnx_path)])
+    report = json.loads(capsys.readouterr().out)
+    assert code == 1  # the broken file is reported, the rest is filed
+    total = sum(report["counts"].values())
+    assert total > 0 and total == len(list(out.rglob("*_??.png")))
+    for label, n in report["counts"].items():
+        assert label in SIGN_CLASSES and (out / f"sheet_{label}.png").exists()

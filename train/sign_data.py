@@ -96,10 +96,12 @@ class SignDataModule(L.LightningDataModule):
                              f"{len(self.val_items)} val")
 
     def class_weights(self) -> torch.Tensor:
-        """Inverse-frequency weights for the cross-entropy (balanced classes in expectation)."""
+        """Square-root inverse-frequency weights for the cross-entropy: rare classes count more,
+        but not so much that the many 'unknown' crops stop mattering (a non-sign taken for a sign
+        is the costlier mistake on the car)."""
         counts = np.bincount([label for _, label in self.train_items], minlength=len(SIGN_CLASSES)).astype(float)
-        w = counts.sum() / np.maximum(counts, 1.0) / len(SIGN_CLASSES)
-        return torch.tensor(w, dtype=torch.float32)
+        w = np.sqrt(counts.sum() / np.maximum(counts, 1.0))
+        return torch.tensor(w / w.mean(), dtype=torch.float32)
 
     def train_dataloader(self) -> DataLoader:
         return DataLoader(CropDataset(self.train_items, self.spec, train_augment()), batch_size=self.batch_size,

@@ -55,6 +55,6 @@ class SignTask(L.LightningModule):
 
     def configure_optimizers(self):
         opt = torch.optim.AdamW(self.parameters(), lr=self.hparams.lr, weight_decay=self.hparams.weight_decay)
-        total = max(1, int(self.trainer.estimated_stepping_batches))
+        total = max(10, int(self.trainer.estimated_stepping_batches))  # OneCycle needs a few steps per phase
         sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=self.hparams.lr, total_steps=total, pct_start=0.2)
         return {"optimizer": opt, "lr_scheduler": {"scheduler": sched, "interval": "step"}}

@@ -121,6 +121,7 @@ def drawn_face(image, obj, pix, size_px, cache, strength, cam_xy, ground):
     front = ground or (math.cos(obj.facing) * to_cam[0] + math.sin(obj.facing) * to_cam[1]) > 0
     sprite = sprite_for(cache, obj, size_px, strength)
     sh, sw = sprite.shape[:2]
+    area *= float(np.mean(sprite[:, :, 3] > 127))  # the face, not its square, is what can be cut off
     src = np.array([[0, 0], [sw, 0], [sw, sh], [0, sh]], np.float32)
     dst = (pix - np.array([cx0, cy0])).astype(np.float32)
     if not front:  # the back of a sign: a plain grey plate of the same outline
