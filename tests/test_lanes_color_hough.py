@@ -1,101 +1,26 @@
 """color-hough (S3): offsets, signs and failure behaviour on seeded rendered frames."""
-import json
-from importlib import resources
 
 import cv2
 import numpy as np
 import pytest
 
+from lane_helpers import CAM, loop_scene, run_method
 from signlane import lanes
 from signlane.camera import Camera
 from signlane.lanes.color_hough import (ColorHoughParams, ColorHoughState, color_hough, ground_samples, merge_close,
                                         run_centres)
 from signlane.types import LaneEstimate
-from signlane.world.render import Renderer
-from signlane.world.route import Route
-from signlane.world.sampling import FrameSampler, SamplerConfig
-from signlane.world.scene import build_scene
-from signlane.world.track import Track
 
 METHOD = "color-hough"
-LOOP = json.loads(resources.files("signlane.world").joinpath("maps/loop_demo.json").read_text())
-STRAIGHTS = (5.0, 65.0, 125.0, 185.0)  # arc lengths on straight stretches of the demo loop
-CAM = Camera()
 
 
 @pytest.fixture(scope="module")
 def loop():
-    track = Track.from_via(LOOP)
-    return Route.loop(track), Renderer(build_scene(track, seed=3))
+    return loop_scene()
 
 
 def run(image, camera=CAM, variant="robust") -> LaneEstimate:
-    return lanes.get(METHOD, camera=camera, variant=variant)(image)
-
-
-def test_clean_frames_offset_within_a_tenth_of_the_lane():
-    smp = FrameSampler(7, SamplerConfig(effects="clean", randomise=False))
-    errs = []
-    for i in range(0, 60, 5):
-        s = smp.sample(i)
-        est = run(s.image, s.truth.nominal_camera)
-        assert est.found, f"frame {i}"
-        errs.append(abs(est.offset - s.truth.offset))
-    assert max(errs) < 0.1 and np.median(errs) < 0.04
-
-
-def test_normal_frames_mostly_found_and_close():
-    smp = FrameSampler(7, SamplerConfig())
-    errs = []
-    for i in range(0, 60, 5):
-        s = smp.sample(i)
-        est = run(s.image, s.truth.nominal_camera)
-        if est.found:
-            errs.append(abs(est.offset - s.truth.offset))
-    assert len(errs) >= 9 and np.median(errs) < 0.06
-
-
-@pytest.mark.parametrize("s", STRAIGHTS)
-def test_lateral_displacement_gives_the_offset_sign_and_size(loop, s):
-    route, renderer = loop
-    for lateral in (0.8, -0.8):
-        smp = renderer.render_on_route(route, s, CAM, lateral_m=lateral)
-        est = run(smp.image)
-        assert est.found and np.sign(est.offset) == np.sign(lateral)
-        assert abs(est.offset - smp.truth.offset) < 0.1  # truth: +-0.8 m / 3.2 m = +-0.25
-
-
-@pytest.mark.parametrize("s", STRAIGHTS)
-def test_heading_sign_follows_the_heading_offset(loop, s):
-    route, renderer = loop
-    for heading in (0.1, -0.1):
-        smp = renderer.render_on_route(route, s, CAM, heading_offset=heading)
-        est = run(smp.image)
-        assert est.found and np.sign(est.heading) == np.sign(heading)
-        assert abs(est.heading - smp.truth.heading) < 0.05
-
-
-def test_debug_mask_marks_the_paint(loop):
-    route, renderer = loop
-    smp = renderer.render_on_route(route, 125.0, CAM)
-    mask = run(smp.image).debug_mask
-    assert mask.dtype == np.uint8 and mask.shape == smp.image.shape[:2] and set(np.unique(mask)) <= {0, 255}
-    paint = cv2.dilate(smp.truth.marking_mask, np.ones((5, 5), np.uint8)) > 0
-    on = mask > 0
-    assert on.sum() > 200 and (on & paint).sum() / on.sum() > 0.8
-
-
-def test_confidence_drops_when_one_side_is_gone(loop):
-    route, renderer = loop
-    smp = renderer.render_on_route(route, 5.0, CAM)
-    both = run(smp.image)
-    one_side = smp.image.copy()
-    road = np.median(smp.image[200:, 140:180].reshape(-1, 3), axis=0)
-    one_side[:, : CAM.width // 2] = road  # paint the left half over with plain road
-    single = run(one_side)
-    assert both.confidence > 0.9
-    assert single.found and 0.0 < single.confidence <= 0.6
-    assert abs(single.offset - smp.truth.offset) < 0.1  # the right line and the width prior
+    return run_method(METHOD, image, camera, variant)
 
 
 def test_nothing_credible_is_not_a_lane():

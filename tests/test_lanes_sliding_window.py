@@ -5,19 +5,16 @@ import math
 import numpy as np
 import pytest
 
+from lane_helpers import CLEAN, clean_samples, drive_stretches
 from signlane import lanes
 from signlane.lanes.bev_marking import pick_ego_pair, ridge_mask
 from signlane.lanes.sliding_window import SlidingWindowParams, SlidingWindowState
-from signlane.world.sampling import DriveSampler, FrameSampler, SamplerConfig
+from signlane.world.sampling import DriveSampler
 
 NAME = "sliding-window"
-CLEAN = SamplerConfig(effects="clean", randomise=False)
-
-
 @pytest.fixture(scope="module")
 def clean_frames():
-    smp = FrameSampler(7, CLEAN)
-    return [smp.sample(i) for i in range(12)]
+    return clean_samples()
 
 
 @pytest.fixture(scope="module")
@@ -26,21 +23,9 @@ def drive():
     return DriveSampler(4, CLEAN)
 
 
-def _find(route, pred, length_m: float) -> float:
-    """First arc length s whose next length_m of route satisfies pred(curvature array)."""
-    for s in np.arange(5.0, route.length - 60.0, 1.0):
-        window = (route.s >= s) & (route.s <= s + length_m)
-        if pred(route.curvature[window]):
-            return float(s)
-    raise AssertionError("route has no such stretch")
-
-
 @pytest.fixture(scope="module")
 def stretches(drive):
-    r = drive.route
-    return {"straight": _find(r, lambda k: np.all(np.abs(k) < 1e-4), 25.0),
-            "right": _find(r, lambda k: np.all(k > 0.015), 12.0),
-            "left": _find(r, lambda k: np.all(k < -0.015), 12.0)}
+    return drive_stretches(drive)
 
 
 def _run(sample, camera=None, **kw):

@@ -14,6 +14,14 @@ import numpy as np
 
 from signlane.lanes.geometry import DEFAULT_LANE_WIDTH_M, Boundary, fit_boundary, shifted
 
+
+@dataclass
+class LaneWidthState:
+    """Tracking state of the methods using this back-end: the lane width measured so far
+    (metres, smoothed)."""
+
+    lane_width_m: float | None = None
+
 SLOPES = np.linspace(-0.5, 0.5, 21)  # dx/dy at the reference row: heading plus the bend so far
 CURVATURES = np.linspace(-0.06, 0.06, 7)  # 1/m: radii down to ~15 m
 BIN_M = 0.15

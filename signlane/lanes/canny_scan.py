@@ -23,7 +23,7 @@ import numpy as np
 
 from signlane.camera import BirdsEye, Camera
 from signlane.lanes import register
-from signlane.lanes.association import ego_lane
+from signlane.lanes.association import LaneWidthState, ego_lane
 from signlane.lanes.geometry import (DEFAULT_LANE_WIDTH_M, Boundary, camera_for, estimate_from_fits,
                                      fit_boundary)
 from signlane.types import LaneEstimate
@@ -61,11 +61,7 @@ class CannyScanParams:
         return cls(mode="single-row", blur_px=11, canny_low=150.0, canny_high=200.0)
 
 
-@dataclass
-class CannyScanState:
-    """Carried between frames: the lane width measured so far (metres, smoothed)."""
-
-    lane_width_m: float | None = None
+CannyScanState = LaneWidthState  # the lane width carried between frames
 
 
 @register(NAME, CannyScanParams)

@@ -30,7 +30,7 @@ import numpy as np
 
 from signlane.camera import Camera
 from signlane.lanes import register
-from signlane.lanes.association import ego_lane
+from signlane.lanes.association import LaneWidthState, ego_lane
 from signlane.lanes.canny_scan import ground_range, horizon_row
 from signlane.lanes.geometry import (DEFAULT_LANE_WIDTH_M, Boundary, camera_for, estimate_from_fits,
                                      fit_boundary, image_points_to_ground)
@@ -72,11 +72,7 @@ class ColorHoughParams:
         return cls(mode="quarters", hough_threshold=10, min_line_length=8.0, max_line_gap=8.0)
 
 
-@dataclass
-class ColorHoughState:
-    """Carried between frames: the lane width measured so far (metres, smoothed)."""
-
-    lane_width_m: float | None = None
+ColorHoughState = LaneWidthState  # the lane width carried between frames
 
 
 @register(NAME, ColorHoughParams)

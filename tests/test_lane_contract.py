@@ -1,0 +1,89 @@
+"""The lane-method contract, checked the same way for the methods that share the marking-point
+back-end (canny-scan, color-hough): offsets within a tenth of the lane, signs of offset and
+heading, the debug mask on the paint, confidence when one side is gone."""
+import cv2
+import numpy as np
+import pytest
+
+from lane_helpers import CAM, STRAIGHTS, loop_scene, run_method as run
+from signlane.world.sampling import FrameSampler, SamplerConfig
+
+METHODS = pytest.mark.parametrize("method", ["canny-scan", "color-hough"])
+
+
+@pytest.fixture(scope="module")
+def loop():
+    return loop_scene()
+
+
+@METHODS
+def test_clean_frames_offset_within_a_tenth_of_the_lane(method):
+    smp = FrameSampler(7, SamplerConfig(effects="clean", randomise=False))
+    errs = []
+    for i in range(0, 60, 5):
+        s = smp.sample(i)
+        est = run(method, s.image, s.truth.nominal_camera)
+        assert est.found, f"frame {i}"
+        errs.append(abs(est.offset - s.truth.offset))
+    assert max(errs) < 0.1 and np.median(errs) < 0.04
+
+
+@METHODS
+def test_normal_frames_mostly_found_and_close(method):
+    smp = FrameSampler(7, SamplerConfig())
+    errs = []
+    for i in range(0, 60, 5):
+        s = smp.sample(i)
+        est = run(method, s.image, s.truth.nominal_camera)
+        if est.found:
+            errs.append(abs(est.offset - s.truth.offset))
+    assert len(errs) >= 9 and np.median(errs) < 0.06
+
+
+@METHODS
+@pytest.mark.parametrize("s", STRAIGHTS)
+def test_lateral_displacement_gives_the_offset_sign_and_size(method, loop, s):
+    route, renderer = loop
+    for lateral in (0.8, -0.8):
+        smp = renderer.render_on_route(route, s, CAM, lateral_m=lateral)
+        est = run(method, smp.image)
+        assert est.found and np.sign(est.offset) == np.sign(lateral)
+        assert abs(est.offset - smp.truth.offset) < 0.1  # truth: +-0.8 m / 3.2 m = +-0.25
+
+
+@METHODS
+@pytest.mark.parametrize("s", STRAIGHTS)
+def test_heading_sign_follows_the_heading_offset(method, loop, s):
+    route, renderer = loop
+    for heading in (0.1, -0.1):
+        smp = renderer.render_on_route(route, s, CAM, heading_offset=heading)
+        est = run(method, smp.image)
+        assert est.found and np.sign(est.heading) == np.sign(heading)
+        assert abs(est.heading - smp.truth.heading) < 0.05
+
+
+@METHODS
+def test_debug_mask_marks_the_paint(method, loop):
+    route, renderer = loop
+    smp = renderer.render_on_route(route, 125.0, CAM)
+    mask = run(method, smp.image).debug_mask
+    assert mask.dtype == np.uint8 and mask.shape == smp.image.shape[:2] and set(np.unique(mask)) <= {0, 255}
+    paint = cv2.dilate(smp.truth.marking_mask, np.ones((5, 5), np.uint8)) > 0
+    on = mask > 0
+    assert on.sum() > 200 and (on & paint).sum() / on.sum() > 0.8
+
+
+@METHODS
+def test_confidence_drops_when_one_side_is_gone(method, loop):
+    route, renderer = loop
+    smp = renderer.render_on_route(route, 5.0, CAM)
+    both = run(method, smp.image)
+    one_side = smp.image.copy()
+    road = np.median(smp.image[200:, 140:180].reshape(-1, 3), axis=0)
+    one_side[:, : CAM.width // 2] = road  # paint the left half over with plain road
+    single = run(method, one_side)
+    assert both.confidence > 0.9
+    assert single.found and 0.0 < single.confidence <= 0.6
+    assert abs(single.offset - smp.truth.offset) < 0.1  # the right line and the width prior
+
+
