@@ -42,6 +42,7 @@ def export_onnx(model: torch.nn.Module, input_shape: tuple[int, ...], path: str 
         onnx.checker.check_model(proto)
         onnx.save(proto, tmp)
         parity = check_parity(model, tmp, input_shape, tol)
+        os.chmod(tmp, 0o644)  # mkstemp makes it private; a model file is for everyone to read
         os.replace(tmp, path)
     finally:
         if os.path.exists(tmp):
@@ -95,6 +96,7 @@ def quantize_int8(src: str | Path, dst: str | Path, calibration: list[np.ndarray
         set_metadata(proto, {p.key: p.value for p in onnx.load(str(src)).metadata_props})
         onnx.checker.check_model(proto)
         onnx.save(proto, tmp)
+        os.chmod(tmp, 0o644)
         os.replace(tmp, dst)
     finally:
         if os.path.exists(tmp):

@@ -119,3 +119,16 @@ def test_autolabel_files_proposals_by_the_classifier_and_draws_sheets(tmp_path, 
     assert total > 0 and total == len(list(out.rglob("*_??.png")))
     for label, n in report["counts"].items():
         assert label in SIGN_CLASSES and (out / f"sheet_{label}.png").exists()
+
+
+def test_shipped_model_meets_a_floor_on_a_fresh_seeded_set(tmp_path):
+    """The shipped model (see signlane/models/signs.json) on crops it never saw."""
+    from data_gen.signs import generate_signs
+    from signlane.evaluate import eval_signs
+    from signlane.signs.classifier import DEFAULT_MODEL
+    card = json.loads(DEFAULT_MODEL.with_suffix(".json").read_text())
+    assert card["classes"] == list(SIGN_CLASSES) and card["task"] == TASK
+    generate_signs(tmp_path / "test", 400, seed=77)
+    scores = eval_signs(tmp_path / "test")
+    assert scores["accuracy"] >= 0.95 and scores["non_sign_accepted"] <= 0.05
+    assert all(r >= 0.9 for label, r in scores["recall"].items() if label != "unknown")
