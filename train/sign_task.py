@@ -12,11 +12,11 @@ from train.sign_net import SignNet
 
 class SignTask(L.LightningModule):
     def __init__(self, size: int = 32, lr: float = 3e-3, weight_decay: float = 1e-4, epochs: int = 20,
-                 class_weights: list[float] | None = None):
+                 class_weights: list[float] | None = None, width: int = 16):
         super().__init__()
         self.save_hyperparameters()
         n = len(SIGN_CLASSES)
-        self.net = SignNet(n, size)
+        self.net = SignNet(n, size, width)
         w = torch.tensor(class_weights, dtype=torch.float32) if class_weights else None
         self.loss = nn.CrossEntropyLoss(weight=w, label_smoothing=0.05)
         self.val_acc = MulticlassAccuracy(n, average="micro")

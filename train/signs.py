@@ -20,7 +20,7 @@ log = logging.getLogger(__name__)
 
 def train_signs(data: list[str | Path], out: str | Path, epochs: int = 20, batch_size: int = 128, lr: float = 3e-3,
                 size: int = 32, val_fraction: float = 0.1, patience: int = 6, seed: int = 0, resume: bool = False,
-                scale: ScaleOut = ScaleOut(), workers: int = 0, quiet: bool = False) -> dict:
+                scale: ScaleOut = ScaleOut(), workers: int = 0, quiet: bool = False, width: int = 16) -> dict:
     """Train; writes checkpoints/, logs/, tensorboard/, config.json, confusion.png, errors_<class>.png."""
     import lightning as L
     from dataclasses import replace
@@ -32,9 +32,9 @@ def train_signs(data: list[str | Path], out: str | Path, epochs: int = 20, batch
     spec = replace(DEFAULT_SPEC, width=size, height=size)
     dm = SignDataModule(data, batch_size, val_fraction, spec, workers)
     dm.setup()
-    task = SignTask(size=size, lr=lr, epochs=epochs, class_weights=dm.class_weights().tolist())
+    task = SignTask(size=size, lr=lr, epochs=epochs, class_weights=dm.class_weights().tolist(), width=width)
     save_run_config(out, {"task": "signs", "data": [str(d) for d in data], "epochs": epochs,
-                          "batch_size": batch_size, "lr": lr, "size": size, "val_fraction": val_fraction,
+                          "batch_size": batch_size, "lr": lr, "size": size, "width": width, "val_fraction": val_fraction,
                           "seed": seed, "train_crops": len(dm.train_items), "val_crops": len(dm.val_items),
                           "scale_out": scale.__dict__})
     trainer, ckpt = build_trainer(out, epochs, "val/acc", "max", patience, scale, quiet=quiet)

@@ -1,0 +1,148 @@
+"""`signlane train`, `export`, `classify` and `autolabel`: the learned models."""
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+from signlane.commands.common import UserError, positive
+
+
+# --- train / export / classify --------------------------------------------------------------------
+def _add_scale_out(p) -> None:
+    g = p.add_argument_group("scale-out (passed to Lightning)")
+    g.add_argument("--accelerator", default="auto", help="cpu, gpu, auto (default auto)")
+    g.add_argument("--devices", default="auto", help="number of devices or 'auto' (default auto)")
+    g.add_argument("--num-nodes", type=int, default=1, help="machines (default 1)")
+    g.add_argument("--strategy", default="auto", help="e.g. ddp (default auto)")
+
+
+def add_train(sub) -> None:
+    p = sub.add_parser("train", help="train the sign classifier (needs the train extra)",
+                       description="Train a model with Lightning on datasets from `signlane gen` (or autolabel). "
+                                   "Writes checkpoints/ (best.ckpt, last.ckpt), logs/ (CSV), tensorboard/, "
+                                   "config.json and report pictures to --out. Resume a killed run with --resume.")
+    kinds = p.add_subparsers(dest="kind", required=True, metavar="{signs}")
+    signs = kinds.add_parser("signs", help="the sign classifier on ImageFolder crops",
+                             description="Train the sign classifier (a small CNN) on one or more ImageFolder crop "
+                                         "sets; writes confusion.png and errors_<class>.png at the end.")
+    signs.add_argument("data", nargs="+", type=Path, help="crop folders (<class>/<id>.png)")
+    signs.add_argument("--out", type=Path, required=True, help="run folder")
+    signs.add_argument("--epochs", type=positive, default=20, help="maximum epochs (default 20)")
+    signs.add_argument("--batch-size", type=positive, default=128, help="batch size (default 128)")
+    signs.add_argument("--lr", type=float, default=3e-3, help="peak learning rate (default 3e-3)")
+    signs.add_argument("--size", type=int, choices=[32, 48], default=32, help="input size (default 32)")
+    signs.add_argument("--width", type=int, default=16, help="channels of the first stage (default 16)")
+    signs.add_argument("--patience", type=positive, default=6, help="early-stopping patience in epochs (default 6)")
+    signs.add_argument("--seed", type=int, default=0, help="training seed (default 0)")
+    signs.add_argument("--workers", type=int, default=0, help="data-loader worker processes (default 0)")
+    signs.add_argument("--resume", action="store_true", help="continue from --out/checkpoints/last.ckpt")
+    _add_scale_out(signs)
+    p.set_defaults(func=_run_train)
+
+
+def _run_train(args) -> int:
+    try:
+        from train.common import ScaleOut
+        from train.signs import train_signs
+    except ImportError as e:
+        raise UserError(f"training needs the train extra (pip install 'signlane[train]'): {e}") from None
+    scale = ScaleOut(args.accelerator, args.devices, args.num_nodes, args.strategy)
+    try:
+        report = train_signs(args.data, args.out, epochs=args.epochs, batch_size=args.batch_size, lr=args.lr,
+                             size=args.size, patience=args.patience, seed=args.seed, resume=args.resume,
+                             scale=scale, workers=args.workers, width=args.width)
+    except ValueError as e:
+        raise UserError(str(e)) from None
+    report.pop("confusion", None)
+    print(json.dumps(report, indent=1))
+    return 0
+
+
+def add_export(sub) -> None:
+    p = sub.add_parser("export", help="export a checkpoint to ONNX with its contract (needs the train extra)",
+                       description="Export a trained checkpoint to ONNX with the model contract in its metadata, "
+                                   "check it with onnx.checker and compare onnxruntime with torch on fixed inputs "
+                                   "(max abs diff <= 1e-4) or fail.")
+    kinds = p.add_subparsers(dest="kind", required=True, metavar="{signs}")
+    signs = kinds.add_parser("signs", help="the sign classifier")
+    signs.add_argument("ckpt", type=Path, help="checkpoint (e.g. RUN/checkpoints/best.ckpt)")
+    signs.add_argument("--out", type=Path, required=True, help="ONNX file to write")
+    signs.add_argument("--int8", action="store_true", help="also write <out>_int8.onnx and report its accuracy drop")
+    p.set_defaults(func=_run_export)
+
+
+def _run_export(args) -> int:
+    try:
+        from export.signs import export_signs
+    except ImportError as e:
+        raise UserError(f"export needs the train extra (pip install 'signlane[train]'): {e}") from None
+    try:
+        report = export_signs(args.ckpt, args.out, int8=args.int8)
+    except (ValueError, OSError) as e:
+        raise UserError(str(e)) from None
+    print(json.dumps(report, indent=1))
+    return 0
+
+
+def add_classify(sub) -> None:
+    p = sub.add_parser("classify", help="classify sign crops with the ONNX sign classifier",
+                       description="Classify image crops of signs; prints one JSON object per crop: "
+                                   '{"source", "label", "score", "scores": {label: p}}.')
+    p.add_argument("crops", nargs="+", help="crop images (or folders of them)")
+    p.add_argument("--model", type=Path, help="ONNX model (default: the shipped signlane/models/signs.onnx)")
+    p.set_defaults(func=_run_classify)
+
+
+def _run_classify(args) -> int:
+    from signlane.media import MediaError, expand, read_image
+    from signlane.onnx_model import ModelError
+    from signlane.signs.classifier import DEFAULT_MODEL, SignClassifier
+    try:
+        clf = SignClassifier(args.model or DEFAULT_MODEL)
+    except ModelError as e:
+        raise UserError(str(e)) from None
+    sources, errors = expand(args.crops)
+    for e in errors:
+        print(f"signlane classify: {e}", file=sys.stderr)
+    failed = len(errors)
+    for src in sources:
+        try:
+            img = read_image(src.path)
+        except MediaError as e:
+            print(f"signlane classify: {e}", file=sys.stderr)
+            failed += 1
+            continue
+        label, score, scores = clf.classify([img])[0]
+        print(json.dumps({"source": str(src.path), "label": label, "score": round(score, 5),
+                          "scores": {k: round(v, 5) for k, v in scores.items()}}))
+    return 1 if failed else 0
+
+
+# --- autolabel ---------------------------------------------------------------------------------
+def add_autolabel(sub) -> None:
+    p = sub.add_parser("autolabel", help="label your own images with the classical stages + current models",
+                       description="Turn your own images and videos into a reviewable training set.")
+    kinds = p.add_subparsers(dest="kind", required=True, metavar="{signs}")
+    signs = kinds.add_parser("signs", help="sign crops foldered by the classifier (review, then train on them)",
+                             description="Run the colour-mask proposals and the current sign classifier on "
+                                         "your images/videos; write each proposal's crop to <out>/<label>/ "
+                                         "(ImageFolder) and a contact sheet per class (sheet_<label>.png). Move "
+                                         "wrong crops to the right folder, then `signlane train signs` on it.")
+    signs.add_argument("paths", nargs="+", help="images, videos or folders")
+    signs.add_argument("--out", type=Path, required=True, help="output folder")
+    signs.add_argument("--model", type=Path, help="classifier ONNX (default: the shipped one, if present)")
+    signs.add_argument("--every", type=positive, default=10, help="every Nth video frame (default 10)")
+    signs.add_argument("--size", type=positive, default=48, help="crop size in pixels (default 48)")
+    p.set_defaults(func=_run_autolabel)
+
+
+def _run_autolabel(args) -> int:
+    from signlane.autolabel import autolabel_signs
+    from signlane.onnx_model import ModelError
+    try:
+        report = autolabel_signs(args.paths, args.out, args.model, args.every, args.size)
+    except ModelError as e:
+        raise UserError(str(e)) from None
+    print(json.dumps({"out": str(args.out), "counts": report["counts"], "model": report["model"]}))
+    return 1 if report["failed"] else 0

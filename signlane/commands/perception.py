@@ -1,0 +1,131 @@
+"""`signlane infer` and `eval`: perception on images, videos and seeded test sets."""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from signlane.commands.common import UserError, positive, size_arg
+
+
+# --- infer -------------------------------------------------------------------------------------
+def _add_config_args(p) -> None:
+    p.add_argument("--config", type=Path, help="TOML config file (sections camera, lanes, signs, control)")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                   help="override one setting, e.g. --set camera.pitch_deg=12 (repeatable)")
+
+
+def _config(args):
+    from signlane.config import Config
+    try:
+        cfg = Config.load(args.config, args.overrides)
+    except ValueError as e:
+        raise UserError(str(e)) from None
+    lanes_method = getattr(args, "lanes", None)
+    if lanes_method:
+        from dataclasses import replace
+        cfg = replace(cfg, lanes=replace(cfg.lanes, method=lanes_method))
+    return cfg
+
+
+def add_infer(sub) -> None:
+    p = sub.add_parser("infer", help="run the pipeline on images, folders and videos",
+                       description="Run lane detection, sign proposals and steering on images, folders of "
+                                   "images/videos, and video files. Writes annotated images/videos with --out and "
+                                   "one JSON object per frame with --json FILE ('-' for stdout). A bad input gets "
+                                   "one error line; the rest still runs; the exit code is 1 if any input failed.")
+    p.add_argument("paths", nargs="+", help="image files, video files or folders")
+    p.add_argument("--out", type=Path, help="folder for annotated images/videos (and masks)")
+    p.add_argument("--json", dest="json_path", metavar="FILE", help="write per-frame JSON lines here ('-' = stdout)")
+    p.add_argument("--lanes", metavar="METHOD",
+                   help="lane method: canny-scan, sliding-window, color-hough, vector-spline (default from config)")
+    p.add_argument("--save-masks", action="store_true", help="write <stem>_lane.png (0/255) beside each annotated image")
+    p.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bars")
+    _add_config_args(p)
+    p.set_defaults(func=_run_infer)
+
+
+def _run_infer(args) -> int:
+    from signlane.infer import run_infer
+    from signlane.onnx_model import ModelError
+    cfg = _config(args)
+    try:
+        summary = run_infer(args.paths, cfg, out=args.out, json_path=args.json_path, save_masks=args.save_masks,
+                            progress=args.progress)
+    except (ValueError, ModelError) as e:
+        raise UserError(str(e)) from None
+    print(summary.table(), file=sys.stderr)
+    return 1 if summary.failed else 0
+
+
+# --- eval --------------------------------------------------------------------------------------
+def add_eval(sub) -> None:
+    p = sub.add_parser("eval", help="score lane methods or sign proposals on a seeded synthetic test set",
+                       description="Render a seeded synthetic test set and print a score table.")
+    kinds = p.add_subparsers(dest="kind", required=True, metavar="{lanes,proposals,signs}")
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("--n", type=positive, default=500, help="frames (default 500)")
+    common.add_argument("--seed", type=int, default=1000, help="test-set seed (default 1000)")
+    common.add_argument("--hard", action="store_true", help="the hard set: glare, blur, noise, worn paint, shadows")
+    common.add_argument("--variant", choices=["robust", "published", "both"], default="robust",
+                        help="robust (default), the source's published baseline, or both")
+    common.add_argument("--csv", type=Path, help="also write the table as CSV")
+    common.add_argument("--plot", type=Path, help="also write a PNG plot")
+    lanes = kinds.add_parser("lanes", parents=[common], help="lane found %%, offset/heading errors, curvature sign",
+                             description="Lane found %, median and 95th percentile lateral-offset error (fraction "
+                                         "of lane width), heading error, curvature sign agreement, ms/frame.")
+    lanes.add_argument("--method", action="append", help="lane method (repeatable; default: all available)")
+    lanes.add_argument("--size", type=size_arg, default=(320, 240), help="frame size WxH (default 320x240)")
+    prop = kinds.add_parser("proposals", parents=[common], help="recall of signs >= 20 px and false proposals/frame",
+                            description="Recall of ground-truth signs (box IoU >= 0.5, signs >= --min-size px) and "
+                                        "false proposals per frame.")
+    prop.add_argument("--min-size", type=int, default=20, help="smallest sign side counted, px (default 20)")
+    prop.add_argument("--size", type=size_arg, default=(640, 480), help="frame size WxH (default 640x480)")
+    prop.add_argument("--focus", choices=["signs", "none"], default="signs",
+                      help="signs (default): each frame 4-45 m before a sign, so the set holds enough signs; "
+                           "none: anywhere on the track")
+    signs = kinds.add_parser("signs", help="sign classifier accuracy on a crop set",
+                             description="Accuracy, per-class recall and non-sign acceptance of the ONNX sign "
+                                         "classifier on an ImageFolder crop set (make a fresh one with "
+                                         "`signlane gen signs --seed S`).")
+    signs.add_argument("data", type=Path, help="crop folder (<class>/<id>.png)")
+    signs.add_argument("--model", type=Path, help="ONNX model (default: the shipped one)")
+    signs.add_argument("--min-score", type=float, default=0.5, help="score a sign needs to count (default 0.5)")
+    p.set_defaults(func=_run_eval)
+
+
+def _run_eval(args) -> int:
+    if args.kind == "signs":
+        from signlane.evaluate import eval_signs
+        from signlane.onnx_model import ModelError
+        try:
+            print(json.dumps(eval_signs(args.data, args.model, args.min_score), indent=1))
+        except (ModelError, ValueError, OSError) as e:
+            raise UserError(str(e)) from None
+        return 0
+    variants = ["robust", "published"] if args.variant == "both" else [args.variant]
+    if args.kind == "lanes":
+        from signlane import lanes
+        from signlane.evaluate import eval_lanes, format_table, plot_lanes, write_csv
+        methods = args.method or lanes.available()
+        try:
+            rows = [eval_lanes(m, args.n, args.seed, args.hard, v, *args.size) for m in methods for v in variants]
+        except ValueError as e:
+            raise UserError(str(e)) from None
+        print(format_table(rows))
+        if args.csv:
+            write_csv(args.csv, rows)
+        if args.plot:
+            plot_lanes(args.plot, rows)
+        return 0
+    from signlane.draw import write_image
+    from signlane.signs import eval_proposals as ep
+    rows = ep.eval_many(args.n, args.seed, args.hard, variants, args.min_size, *args.size, progress=True,
+                        focus=args.focus)
+    print(ep.format_table(rows))
+    if args.csv:
+        ep.write_csv(args.csv, rows)
+    if args.plot:
+        write_image(args.plot, ep.plot_recall_by_size(rows))
+    return 0

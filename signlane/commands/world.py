@@ -1,0 +1,150 @@
+"""`signlane gen`, `demo` and `map`: synthetic data and tracks."""
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from signlane.commands.common import UserError, positive, size_arg
+
+
+# --- gen ---------------------------------------------------------------------------------------
+def add_gen(sub) -> None:
+    p = sub.add_parser("gen", help="generate synthetic datasets (lanes, signs, drive)",
+                       description="Generate seeded synthetic datasets from the world renderer. The same "
+                                   "seed gives the same files whatever --workers; an interrupted run is "
+                                   "completed with --resume.")
+    kinds = p.add_subparsers(dest="kind", required=True, metavar="{lanes,signs,drive}")
+    common = argparse.ArgumentParser(add_help=False)
+    common.add_argument("--n", type=positive, required=True, help="number of frames / crops")
+    common.add_argument("--out", type=Path, required=True, help="output folder")
+    common.add_argument("--seed", type=int, default=0, help="dataset seed (default 0)")
+    common.add_argument("--resume", action="store_true", help="complete an interrupted run in --out")
+    common.add_argument("--preview", action="store_true", help="also write contact sheets (preview*.png)")
+    lanes = kinds.add_parser("lanes", parents=[common], help="frames + lane-marking masks + labels.jsonl",
+                             description="Frames with exact lane-marking masks and labels (images/, masks/, "
+                                         "labels.jsonl, manifest.json).")
+    lanes.add_argument("--size", type=size_arg, default=(320, 240), help="frame size WxH (default 320x240)")
+    lanes.add_argument("--workers", type=positive, default=1, help="worker processes (default 1)")
+    lanes.add_argument("--effects", choices=["clean", "normal", "hard", "mixed"], default="mixed",
+                       help="photometric/pose randomisation (default mixed: normal and hard)")
+    lanes.add_argument("--no-randomise", dest="randomise", action="store_false",
+                       help="default road style, looks and camera instead of randomised ones")
+    signs = kinds.add_parser("signs", parents=[common], help="labelled sign crops (ImageFolder)",
+                             description="Sign crops in ImageFolder layout <class>/<id>.png with VIA class "
+                                         "names, including 'unknown' crops of red/blue non-signs.")
+    signs.add_argument("--crop", type=positive, default=48, help="crop size in pixels (default 48)")
+    signs.add_argument("--workers", type=positive, default=1, help="worker processes (default 1)")
+    drive = kinds.add_parser("drive", parents=[common], help="a frame sequence along one track (+ drive.mp4)",
+                             description="Consecutive frames along one seeded track, in the lanes layout, "
+                                         "plus drive.mp4.")
+    drive.add_argument("--size", type=size_arg, default=(640, 480), help="frame size WxH (default 640x480)")
+    drive.add_argument("--fps", type=float, default=20.0, help="frames per second of the drive (default 20)")
+    p.set_defaults(func=_run_gen)
+
+
+def _run_gen(args) -> int:
+    from data_gen.common import DatasetError
+    try:
+        return _gen(args)
+    except DatasetError as e:
+        raise UserError(str(e)) from None
+
+
+def _gen(args) -> int:
+    if args.kind == "lanes":
+        from data_gen.lanes import generate_lanes
+        m = generate_lanes(args.out, args.n, args.seed, width=args.size[0], height=args.size[1],
+                           workers=args.workers, resume=args.resume, preview=args.preview,
+                           effects=args.effects, randomise=args.randomise)
+    elif args.kind == "signs":
+        from data_gen.signs import generate_signs
+        m = generate_signs(args.out, args.n, args.seed, crop=args.crop, workers=args.workers,
+                           resume=args.resume, preview=args.preview)
+    else:
+        from data_gen.drive import generate_drive
+        m = generate_drive(args.out, args.n, args.seed, width=args.size[0], height=args.size[1], fps=args.fps,
+                           resume=args.resume, preview=args.preview)
+    print(json.dumps({"out": str(args.out), "counts": m.get("counts")}))
+    return 0
+
+
+# --- demo --------------------------------------------------------------------------------------
+def add_demo(sub) -> None:
+    p = sub.add_parser("demo", help="render a short drive to an MP4, a contact sheet and a track map",
+                       description="Render a short drive on the bundled loop_demo map (or a seeded procedural "
+                                   "track with --track random): drive.mp4 (camera view and ground truth side by "
+                                   "side), contact_sheet.png and track.png.")
+    p.add_argument("--out", type=Path, default=Path("out/demo"), help="output folder (default out/demo)")
+    p.add_argument("--track", default="loop_demo",
+                   help="'loop_demo' (bundled, default), 'random' (procedural, see --seed) or a VIA map JSON file")
+    p.add_argument("--seed", type=int, default=0, help="seed of the route's choices and a random track (default 0)")
+    p.add_argument("--seconds", type=float, default=20.0, help="length of the drive (default 20)")
+    p.add_argument("--size", type=size_arg, default=(640, 480), help="frame size WxH (default 640x480)")
+    p.set_defaults(func=_run_demo)
+
+
+def _run_demo(args) -> int:
+    from signlane.demo import bundled_map, run_demo
+    from signlane.world.procedural import generate_map
+    from signlane.world.track import MapError, Track
+    try:
+        if args.track == "loop_demo":
+            track = bundled_map()
+        elif args.track == "random":
+            track = Track.from_via(generate_map(args.seed))
+        else:
+            track = Track.load(args.track)
+    except MapError as e:
+        raise UserError(str(e)) from None
+    res = run_demo(args.out, seed=args.seed, seconds=args.seconds, width=args.size[0], height=args.size[1],
+                   track=track)
+    for name, path in res["files"].items():
+        print(f"{name:>14}: {path}")
+    return 0
+
+
+# --- map ---------------------------------------------------------------------------------------
+def add_map(sub) -> None:
+    p = sub.add_parser("map", help="check a VIA map file, or make a procedural one; draw it from above",
+                       description="Load a VIA map JSON (or generate a seeded procedural map), check that every "
+                                   "road connects, print a summary and optionally write a top-down PNG and "
+                                   "the map JSON.")
+    src = p.add_mutually_exclusive_group(required=True)
+    src.add_argument("file", nargs="?", type=Path, help="VIA map JSON file")
+    src.add_argument("--random", type=int, metavar="SEED", help="generate a procedural map with this seed")
+    p.add_argument("--size", choices=["small", "medium", "large"], default="medium",
+                   help="procedural map size (default medium)")
+    p.add_argument("--png", type=Path, help="write a top-down picture here")
+    p.add_argument("--save", type=Path, help="write the map JSON here (for --random)")
+    p.set_defaults(func=_run_map)
+
+
+def _run_map(args) -> int:
+    from signlane.world.procedural import generate_map
+    from signlane.world.route import Route
+    from signlane.world.scene import build_scene
+    from signlane.world.topdown import draw_topdown
+    from signlane.world.track import MapError, Track
+    from signlane.draw import write_image
+    try:
+        if args.file is not None:
+            track = Track.load(args.file)
+            data = None
+        else:
+            data = generate_map(args.random, size=args.size)
+            track = Track.from_via(data)
+    except MapError as e:
+        raise UserError(str(e)) from None
+    kinds: dict[str, int] = {}
+    for t in track.tiles:
+        kinds[t.name] = kinds.get(t.name, 0) + 1
+    lap = Route.loop(track)
+    print(json.dumps({"name": track.name, "grid": [track.cols, track.rows], "tiles": kinds,
+                      "signs": [s.kind for s in track.signs], "lap_m": round(lap.length, 1)}))
+    if args.png:
+        write_image(args.png, draw_topdown(build_scene(track), path_xy=lap.lane))
+    if args.save and data is not None:
+        args.save.parent.mkdir(parents=True, exist_ok=True)
+        args.save.write_text(json.dumps(data, indent=1))
+    return 0
