@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from functools import cached_property
+from functools import cached_property, lru_cache
 
 import cv2
 import numpy as np
@@ -121,13 +121,19 @@ class Camera:
         return row[:2].copy(), float(row[2])
 
     def ground_mask(self, margin_px: float = 0.0) -> np.ndarray:
-        """(H,W) bool: pixels whose rays hit the ground (below the horizon by margin_px)."""
+        """(H,W) bool, read-only: pixels whose rays hit the ground (below the horizon by margin_px).
+        Cached per camera: it depends on nothing else."""
+        return _ground_mask(self, float(margin_px))
+
+    def _ground_mask(self, margin_px: float) -> np.ndarray:
         n, c = self.horizon()
         norm = float(np.hypot(*n)) or 1.0
         u = np.arange(self.width) + 0.5
         v = np.arange(self.height) + 0.5
         val = (n[0] * u[None, :] + n[1] * v[:, None] + c) / norm
-        return val > margin_px
+        mask = val > margin_px
+        mask.flags.writeable = False
+        return mask
 
     # --- bird's-eye view -----------------------------------------------------------------
     def birdseye(self, size: tuple[int, int], x_range_m: tuple[float, float],
@@ -148,6 +154,11 @@ class Camera:
         w = int(round(self.width * scale))
         h = int(round(self.height * scale))
         return self.birdseye((w, h), (-half, half), (y0, y1))
+
+
+@lru_cache(maxsize=64)
+def _ground_mask(camera: Camera, margin_px: float) -> np.ndarray:
+    return camera._ground_mask(margin_px)
 
 
 @dataclass(frozen=True)
