@@ -5,15 +5,10 @@ import cv2
 import numpy as np
 import pytest
 
-from lane_helpers import CAM, STRAIGHTS, loop_scene, run_method as run
+from lane_helpers import CAM, STRAIGHTS, run_method as run
 from signlane.world.sampling import FrameSampler, SamplerConfig
 
 METHODS = pytest.mark.parametrize("method", ["canny-scan", "color-hough"])
-
-
-@pytest.fixture(scope="module")
-def loop():
-    return loop_scene()
 
 
 @METHODS
@@ -42,8 +37,8 @@ def test_normal_frames_mostly_found_and_close(method):
 
 @METHODS
 @pytest.mark.parametrize("s", STRAIGHTS)
-def test_lateral_displacement_gives_the_offset_sign_and_size(method, loop, s):
-    route, renderer = loop
+def test_lateral_displacement_gives_the_offset_sign_and_size(method, lane_loop, s):
+    route, renderer = lane_loop
     for lateral in (0.8, -0.8):
         smp = renderer.render_on_route(route, s, CAM, lateral_m=lateral)
         est = run(method, smp.image)
@@ -53,8 +48,8 @@ def test_lateral_displacement_gives_the_offset_sign_and_size(method, loop, s):
 
 @METHODS
 @pytest.mark.parametrize("s", STRAIGHTS)
-def test_heading_sign_follows_the_heading_offset(method, loop, s):
-    route, renderer = loop
+def test_heading_sign_follows_the_heading_offset(method, lane_loop, s):
+    route, renderer = lane_loop
     for heading in (0.1, -0.1):
         smp = renderer.render_on_route(route, s, CAM, heading_offset=heading)
         est = run(method, smp.image)
@@ -63,8 +58,8 @@ def test_heading_sign_follows_the_heading_offset(method, loop, s):
 
 
 @METHODS
-def test_debug_mask_marks_the_paint(method, loop):
-    route, renderer = loop
+def test_debug_mask_marks_the_paint(method, lane_loop):
+    route, renderer = lane_loop
     smp = renderer.render_on_route(route, 125.0, CAM)
     mask = run(method, smp.image).debug_mask
     assert mask.dtype == np.uint8 and mask.shape == smp.image.shape[:2] and set(np.unique(mask)) <= {0, 255}
@@ -74,8 +69,8 @@ def test_debug_mask_marks_the_paint(method, loop):
 
 
 @METHODS
-def test_confidence_drops_when_one_side_is_gone(method, loop):
-    route, renderer = loop
+def test_confidence_drops_when_one_side_is_gone(method, lane_loop):
+    route, renderer = lane_loop
     smp = renderer.render_on_route(route, 5.0, CAM)
     both = run(method, smp.image)
     one_side = smp.image.copy()

@@ -5,7 +5,7 @@ import cv2
 import numpy as np
 import pytest
 
-from lane_helpers import CAM, loop_scene, run_method
+from lane_helpers import CAM, run_method
 from signlane import lanes
 from signlane.camera import Camera
 from signlane.lanes.association import ego_lane
@@ -13,11 +13,6 @@ from signlane.lanes.canny_scan import CannyScanParams, CannyScanState, canny_sca
 from signlane.types import LaneEstimate
 
 METHOD = "canny-scan"
-
-
-@pytest.fixture(scope="module")
-def loop():
-    return loop_scene()
 
 
 def run(image, camera=CAM, variant="robust") -> LaneEstimate:
@@ -34,8 +29,8 @@ def test_nothing_credible_is_not_a_lane():
     assert sum(noise) <= 1
 
 
-def test_gray_and_tiny_images(loop):
-    route, renderer = loop
+def test_gray_and_tiny_images(lane_loop):
+    route, renderer = lane_loop
     smp = renderer.render_on_route(route, 65.0, CAM, lateral_m=0.5)
     gray = cv2.cvtColor(smp.image, cv2.COLOR_BGR2GRAY)
     for img in (gray, cv2.cvtColor(gray, cv2.COLOR_GRAY2BGR)):
@@ -47,10 +42,10 @@ def test_gray_and_tiny_images(loop):
             assert isinstance(est, LaneEstimate) and est.debug_mask.shape == shape[:2]
 
 
-def test_published_variant_is_the_source_and_scans_one_row(loop):
+def test_published_variant_is_the_source_and_scans_one_row(lane_loop):
     p = lanes.params_for(METHOD, "published")
     assert (p.blur_px, p.canny_low, p.canny_high, p.scan_row_frac, p.top_row_frac) == (11, 150.0, 200.0, 0.9, 0.4)
-    route, renderer = loop
+    route, renderer = lane_loop
     for lateral in (0.8, -0.8):
         smp = renderer.render_on_route(route, 125.0, CAM, lateral_m=lateral)
         est = run(smp.image, variant="published")
@@ -71,8 +66,8 @@ def test_published_birdseye_comes_from_the_camera():
     assert math.isfinite(low.y_range_m[1]) and low.y_range_m[1] < 200.0
 
 
-def test_state_learns_the_lane_width_and_modes_are_checked(loop):
-    route, renderer = loop
+def test_state_learns_the_lane_width_and_modes_are_checked(lane_loop):
+    route, renderer = lane_loop
     smp = renderer.render_on_route(route, 125.0, CAM)
     est, state = canny_scan(smp.image, CAM, CannyScanParams(), None)
     assert isinstance(state, CannyScanState) and abs(state.lane_width_m - 3.2) < 0.3

@@ -4,7 +4,7 @@ import cv2
 import numpy as np
 import pytest
 
-from lane_helpers import CAM, loop_scene, run_method
+from lane_helpers import CAM, run_method
 from signlane import lanes
 from signlane.camera import Camera
 from signlane.lanes.color_hough import (ColorHoughParams, ColorHoughState, color_hough, ground_samples, merge_close,
@@ -12,11 +12,6 @@ from signlane.lanes.color_hough import (ColorHoughParams, ColorHoughState, color
 from signlane.types import LaneEstimate
 
 METHOD = "color-hough"
-
-
-@pytest.fixture(scope="module")
-def loop():
-    return loop_scene()
 
 
 def run(image, camera=CAM, variant="robust") -> LaneEstimate:
@@ -30,8 +25,8 @@ def test_nothing_credible_is_not_a_lane():
     assert not run(np.full((240, 320, 3), 128, np.uint8)).found
 
 
-def test_gray_and_tiny_images(loop):
-    route, renderer = loop
+def test_gray_and_tiny_images(lane_loop):
+    route, renderer = lane_loop
     smp = renderer.render_on_route(route, 65.0, CAM, lateral_m=0.5)
     gray = cv2.cvtColor(smp.image, cv2.COLOR_BGR2GRAY)
     for img in (gray, cv2.cvtColor(gray, cv2.COLOR_GRAY2BGR)):  # white paint needs no colour
@@ -43,11 +38,11 @@ def test_gray_and_tiny_images(loop):
             assert isinstance(est, LaneEstimate) and est.debug_mask.shape == shape[:2]
 
 
-def test_published_variant_is_the_source_and_runs(loop):
+def test_published_variant_is_the_source_and_runs(lane_loop):
     p = lanes.params_for(METHOD, "published")
     assert (p.yellow_lo, p.white_lo, p.white_hi[1]) == ((15, 40, 40), (0, 0, 200), 30)
     assert (p.canny_low, p.canny_high, p.hough_threshold, p.min_line_length, p.max_line_gap) == (200, 400, 10, 8, 8)
-    route, renderer = loop
+    route, renderer = lane_loop
     for heading in (0.1, -0.1):
         smp = renderer.render_on_route(route, 65.0, CAM, heading_offset=heading)
         est = run(smp.image, variant="published")
@@ -78,8 +73,8 @@ def test_run_centres_thin_each_run_to_one_pixel():
     assert list(np.flatnonzero(out[1])) == [4, 10] and not out[0].any() and not out[2].any()
 
 
-def test_state_learns_the_lane_width_and_modes_are_checked(loop):
-    route, renderer = loop
+def test_state_learns_the_lane_width_and_modes_are_checked(lane_loop):
+    route, renderer = lane_loop
     smp = renderer.render_on_route(route, 125.0, CAM)
     est, state = color_hough(smp.image, CAM, ColorHoughParams(), None)
     assert isinstance(state, ColorHoughState) and abs(state.lane_width_m - 3.2) < 0.3

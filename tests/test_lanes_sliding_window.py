@@ -5,29 +5,11 @@ import math
 import numpy as np
 import pytest
 
-from lane_helpers import CLEAN, clean_samples, drive_stretches
 from signlane import lanes
 from signlane.lanes.bev_marking import pick_ego_pair, ridge_mask
 from signlane.lanes.sliding_window import SlidingWindowParams, SlidingWindowState
-from signlane.world.sampling import DriveSampler
 
 NAME = "sliding-window"
-@pytest.fixture(scope="module")
-def clean_frames():
-    return clean_samples()
-
-
-@pytest.fixture(scope="module")
-def drive():
-    """A clean drive whose route has a straight, a right bend and a left bend."""
-    return DriveSampler(4, CLEAN)
-
-
-@pytest.fixture(scope="module")
-def stretches(drive):
-    return drive_stretches(drive)
-
-
 def _run(sample, camera=None, **kw):
     return lanes.get(NAME, camera=camera or sample.truth.nominal_camera, **kw)(sample.image)
 

@@ -6,28 +6,10 @@ import math
 import numpy as np
 import pytest
 
-from lane_helpers import CLEAN, clean_samples, drive_stretches
 from signlane import lanes
 from signlane.lanes.vector_spline import VectorSplineParams, VectorSplineState, run_centres, skeletonize
-from signlane.world.sampling import DriveSampler
 
 NAME = "vector-spline"
-@pytest.fixture(scope="module")
-def clean_frames():
-    return clean_samples()
-
-
-@pytest.fixture(scope="module")
-def drive():
-    """A clean drive whose route has a straight, a right bend and a left bend."""
-    return DriveSampler(4, CLEAN)
-
-
-@pytest.fixture(scope="module")
-def stretches(drive):
-    return drive_stretches(drive)
-
-
 def test_finds_the_lane_on_clean_frames(clean_frames):
     errs = []
     for smp in clean_frames:
