@@ -1,6 +1,8 @@
 """The lane-method contract, checked the same way for the methods that share the marking-point
 back-end (canny-scan, color-hough): offsets within a tenth of the lane, signs of offset and
 heading, the debug mask on the paint, confidence when one side is gone."""
+import math
+
 import cv2
 import numpy as np
 import pytest
@@ -82,3 +84,25 @@ def test_confidence_drops_when_one_side_is_gone(method, lane_loop):
     assert abs(single.offset - smp.truth.offset) < 0.1  # the right line and the width prior
 
 
+
+
+ALL_METHODS = pytest.mark.parametrize("name", ["canny-scan", "sliding-window", "color-hough", "vector-spline"])
+
+
+@ALL_METHODS
+@pytest.mark.parametrize("variant", ["robust", "published"])
+def test_a_black_image_is_no_lane(name, variant):
+    est = run(name, np.zeros((240, 320, 3), np.uint8), variant=variant)
+    assert not est.found and est.confidence == 0.0
+    assert est.debug_mask.shape == (240, 320) and not est.debug_mask.any()
+
+
+@ALL_METHODS
+@pytest.mark.parametrize("shape", [(1, 1, 3), (8, 12, 3), (20, 30, 3), (2, 200, 3), (48, 64), (120, 160, 3)])
+def test_small_or_odd_images_do_not_crash(name, clean_frames, shape):
+    img = np.full(shape, 90, np.uint8) if len(shape) == 2 else np.ascontiguousarray(
+        clean_frames[0].image[: shape[0], : shape[1]])
+    for variant in ("robust", "published"):
+        est = run(name, img, variant=variant)
+        assert est.debug_mask.shape == img.shape[:2]
+        assert 0.0 <= est.confidence <= 1.0 and math.isfinite(est.offset)

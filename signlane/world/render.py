@@ -39,6 +39,7 @@ class Renderer:
         self.scene = scene
         self.sign_strength = sign_strength  # appearance randomisation of sign sprites
         self._pano = np.concatenate([scene.panorama, scene.panorama[:, :64]], axis=1)
+        self._palette_lut = self._palette()  # paint id -> BGR; the scene's colours do not change
         # the texture's own contrast is about 0.3; scale it to the scene's texture strength once
         scale = scene.looks.texture / 0.3
         self._texture_img = cv2.addWeighted(scene.texture, scale, scene.texture, 0, 128 * (1 - scale))
@@ -79,14 +80,13 @@ class Renderer:
                 continue
             cv2.fillPoly(ids, [pts], _PAINT_ID[layer] + (2 if faded else 0), cv2.LINE_8, 4)
         cv2.multiply(ids, geo.ground_u8, ids)
-        image = cv2.LUT(cv2.merge([ids, ids, ids]), self._palette)
+        image = cv2.LUT(cv2.merge([ids, ids, ids]), self._palette_lut)
         image = cv2.GaussianBlur(image, (3, 3), 0.6)  # stands in for anti-aliasing
         self._texture(image, pose, camera, shadow, geo.ground_top)
         self._sky(image, pose, camera, geo)
         drawn = draw_objects(image, self.scene.objects, camera, w2g, self.scene.sprite_cache, self.sign_strength)
         return image, ids, drawn
 
-    @property
     def _palette(self) -> np.ndarray:
         lk = self.scene.looks
         fade = [tuple(int(0.45 * c + 0.55 * a) for c, a in zip(col, lk.asphalt)) for col in (lk.white, lk.yellow)]
