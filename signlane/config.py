@@ -49,11 +49,27 @@ class ControlConfig:
 
 
 @dataclass(frozen=True)
+class DriveConfig:
+    """Closed-loop driving (`signlane drive`, `signlane sim --with-driver`): the speed planner
+    and what the driver assumes of the car."""
+
+    max_speed: float = 10.0  # simulator speed at throttle 1 (VIA throttle is a target-speed fraction)
+    cruise_speed: float = 5.0
+    approach_speed: float = 3.0  # after a confirmed sign, until it is dealt with
+    stop_hold_s: float = 2.0
+    coast_decel: float = 1.5  # how fast the car slows at throttle 0 (there are no brakes)
+    wheelbase_m: float = 1.8  # for odometry and path following
+    sign_size_m: float = 0.9  # sign face height, for the distance to a sign
+    lanes_width: int = 320  # lanes and junctions run on frames scaled to this width (0 = as sent)
+
+
+@dataclass(frozen=True)
 class Config:
     camera: CameraConfig = field(default_factory=CameraConfig)
     lanes: LanesConfig = field(default_factory=LanesConfig)
     signs: SignsConfig = field(default_factory=SignsConfig)
     control: ControlConfig = field(default_factory=ControlConfig)
+    drive: DriveConfig = field(default_factory=DriveConfig)
 
     def to_dict(self) -> dict:
         return asdict(self)

@@ -18,26 +18,17 @@ class Pipeline:
         self._lane = None
         self._controller = None
         self._throttle = ThrottlePolicy(self.config.control.cruise)
-        self.confirmed: list[SignDetection] = []  # signs confirmed over the last frames (N of M)
-        self._proposals = None
-        self._classifier = None
-        self.confirmer = None
+        self.signs = None
         lanes.params_for(self.config.lanes.method, self.config.lanes.variant)  # fail early on a bad name
         make_controller(self.config.control.controller)
         if self.config.signs.enabled:
-            self._setup_signs()
+            from signlane.signs.stage import SignStage
+            self.signs = SignStage(self.config.signs)
 
-    def _setup_signs(self) -> None:
-        from signlane.signs import proposals
-        from signlane.signs.classifier import DEFAULT_MODEL, SignClassifier
-        from signlane.signs.confirm import SignConfirmer
-        sc = self.config.signs
-        self._proposals = (proposals.propose, proposals.ProposalParams.published()
-                           if sc.variant == "published" else proposals.ProposalParams())
-        path = sc.model or DEFAULT_MODEL
-        if sc.model or DEFAULT_MODEL.exists():  # a named model must load; the shipped one may be absent
-            self._classifier = SignClassifier(path)
-        self.confirmer = SignConfirmer(sc.confirm_n, sc.confirm_m)
+    @property
+    def confirmed(self) -> list[SignDetection]:
+        """Signs confirmed over the last frames (N of M)."""
+        return self.signs.confirmed if self.signs is not None else []
 
     def _setup(self, width: int, height: int) -> None:
         """Camera-dependent parts are built for the stream's frame size."""
@@ -58,13 +49,8 @@ class Pipeline:
         t1 = time.perf_counter()
         timing["lanes"] = (t1 - t0) * 1e3
         signs: tuple[SignDetection, ...] = ()
-        if self._proposals is not None:
-            propose, params = self._proposals
-            found = propose(frame.image_bgr, params)
-            if self._classifier is not None:
-                found = self._classifier.label_detections(frame.image_bgr, found, self.config.signs.min_score)
-            signs = tuple(found)
-            self.confirmed = self.confirmer.step(signs)
+        if self.signs is not None:
+            signs, _ = self.signs.step(frame.image_bgr)
             timing["signs"] = (time.perf_counter() - t1) * 1e3
         t2 = time.perf_counter()
         steering = self._controller.step(lane, speed)
@@ -78,8 +64,8 @@ class Pipeline:
             self._lane.reset()
         if self._controller is not None:
             self._controller.reset()
-        if self.confirmer is not None:
-            self.confirmer.reset()
+        if self.signs is not None:
+            self.signs.reset()
 
     def close(self) -> None:
         self.reset()

@@ -1,0 +1,211 @@
+"""The sign-aware driving behaviour: a small explicit state machine over lane following.
+
+States (the `Command.state` string):
+- `cruise`: follow the lane at cruise speed, slower in curves.
+- `approach`: a confirmed sign ahead: slow to the approach speed until it is dealt with.
+- `stopping` / `stopped`: a stop sign: roll to a full stop before it, hold (2 s by default), go.
+- `junction-left|right|straight`: markings vanish in a junction, so the car follows a planned
+  path (straight on, or an arc to the chosen exit) in the odometry frame until it is through.
+- `lost`: no lane and nothing planned: coast straight.
+
+Exit choice at a junction: `left`/`right`/`straight` signs take that exit when it exists;
+`no_left`/`no_right` never take that exit; with no instruction, straight if possible, else right.
+Throttle is a target-speed fraction (VIA semantics): speed targets become throttle by dividing
+by `max_speed`; there are no brakes, so slowing is coasting and stops are planned ahead.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from signlane.control import PurePursuit
+from signlane.junction import JunctionView
+from signlane.odometry import OdoPose
+from signlane.types import LaneEstimate
+
+TURN_SIGNS = {"left", "right", "straight", "no_left", "no_right"}
+
+
+@dataclass(frozen=True)
+class BehaviourParams:
+    max_speed: float = 10.0  # m/s at throttle 1 (the simulator's)
+    cruise_speed: float = 5.0
+    approach_speed: float = 3.0
+    junction_speed: float = 2.8
+    lateral_accel: float = 2.0  # m/s^2 allowed in curves
+    coast_decel: float = 1.5  # m/s^2 the car slows at with throttle 0
+    stop_before_m: float = 3.0  # where to stop, metres before the sign
+    stop_hold_s: float = 2.0
+    stop_margin_s: float = 0.5  # held a little longer than required
+    wheelbase_m: float = 1.8
+    right_radius_m: float = 5.0
+    left_radius_m: float = 7.6
+    lane_width_m: float = 3.2
+    commit_near_m: float = 12.0  # plan a junction once its side road starts this close
+    instruction_range_m: float = 40.0  # a turn sign applies to a junction within this distance after it
+
+
+@dataclass
+class SignMemory:
+    label: str
+    pos: np.ndarray  # odometry frame
+    done: bool = False
+
+
+class Behaviour:
+    def __init__(self, params: BehaviourParams | None = None):
+        self.p = params or BehaviourParams()
+        self.follow = PurePursuit(wheelbase_m=self.p.wheelbase_m)
+        self.reset()
+
+    def reset(self) -> None:
+        self.state = "cruise"
+        self.signs: list[SignMemory] = []
+        self.path: np.ndarray | None = None  # junction path, odometry frame
+        self.turn = ""
+        self.stop_sign: SignMemory | None = None
+        self.stopped_since: float | None = None
+        self.cooldown_until_m = -1.0
+        self.follow.reset()
+
+    # --- signs -------------------------------------------------------------------------
+    def observe_signs(self, seen: list[tuple[str, np.ndarray]]) -> None:
+        """Confirmed signs with positions in the odometry frame: merge into memory by place."""
+        for label, pos in seen:
+            if label not in TURN_SIGNS and label != "stop":
+                continue
+            near = [m for m in self.signs if np.hypot(*(m.pos - pos)) < 6.0]
+            if near:
+                m = near[0]
+                if not m.done:
+                    m.pos, m.label = pos, label  # closer views place it better
+            else:
+                self.signs.append(SignMemory(label, np.asarray(pos, float)))
+
+    def _ahead(self, pose: OdoPose, m: SignMemory) -> float:
+        return float(pose.to_car(m.pos)[0, 1])
+
+    def _pending(self, pose: OdoPose, labels: set[str], behind_m: float = 0.0) -> SignMemory | None:
+        live = [m for m in self.signs if not m.done and m.label in labels and self._ahead(pose, m) > -behind_m]
+        return min(live, key=lambda m: abs(self._ahead(pose, m)), default=None)
+
+    # --- main step -----------------------------------------------------------------------------
+    def step(self, t: float, pose: OdoPose, odo_m: float, speed: float, lane: LaneEstimate,
+             junction: JunctionView | None) -> tuple[float, float, str]:
+        """-> (steering [-1, 1], throttle [0, 1], state)."""
+        self.signs = [m for m in self.signs if self._ahead(pose, m) > -self.p.instruction_range_m]
+        if self.path is not None:
+            return self._junction_step(pose, odo_m, speed)
+        if junction is not None and odo_m > self.cooldown_until_m and self._plan_junction(pose, odo_m, lane, junction):
+            return self._junction_step(pose, odo_m, speed)
+        steering = self.follow.step(lane, speed)
+        v, state = self._speed(t, pose, speed, lane)
+        return steering, v / self.p.max_speed, state
+
+    def _speed(self, t: float, pose: OdoPose, speed: float, lane: LaneEstimate) -> tuple[float, str]:
+        p = self.p
+        stop = self._pending(pose, {"stop"})
+        if stop is not None:
+            rem = self._ahead(pose, stop) - p.stop_before_m
+            if speed < 0.05 and rem < 6.0:
+                self.stopped_since = t if self.stopped_since is None else self.stopped_since
+                if t - self.stopped_since >= p.stop_hold_s + p.stop_margin_s:
+                    stop.done = True
+                    self.stopped_since = None
+                    return p.approach_speed, "approach"
+                return 0.0, "stopped"
+            self.stopped_since = None
+            # the fastest speed from which coasting still stops in time
+            v = math.sqrt(2 * p.coast_decel * max(rem - 0.3, 0.0))
+            return min(v, p.approach_speed if rem > 0 else 0.0), "stopping"
+        if not lane.found:
+            return 0.0, "lost"
+        v = p.cruise_speed
+        if abs(lane.curvature) > 1e-4:
+            v = min(v, math.sqrt(p.lateral_accel / abs(lane.curvature)))
+        if self._pending(pose, TURN_SIGNS) is not None:
+            return min(v, p.approach_speed), "approach"
+        return v, "cruise"
+
+    # --- junctions ------------------------------------------------------------------------------
+    def _exits(self, j: JunctionView) -> set[str] | None:
+        """Turns available, or None when this is not (yet) a junction: a curve opens to one
+        side only and does not go on straight."""
+        exits = set()
+        if j.left is not None and j.left.closed:
+            exits.add("left")
+        if j.right is not None and j.right.closed:
+            exits.add("right")
+        if not exits:
+            return None
+        if j.straight:
+            exits.add("straight")
+        if len(exits) < 2:
+            return None
+        return exits
+
+    def choose(self, exits: set[str], instruction: str | None) -> str:
+        if instruction in ("left", "right", "straight") and instruction in exits:
+            return instruction
+        banned = {"no_left": "left", "no_right": "right"}.get(instruction or "", "")
+        for turn in ("straight", "right", "left"):
+            if turn in exits and turn != banned:
+                return turn
+        return sorted(exits)[0]
+
+    def _plan_junction(self, pose: OdoPose, odo_m: float, lane: LaneEstimate, j: JunctionView) -> bool:
+        exits = self._exits(j)
+        if exits is None:
+            return False
+        side = [o for o in (j.right, j.left) if o is not None and o.closed]
+        near = min(o.near_m for o in side)
+        if near > self.p.commit_near_m:
+            return False
+        y_c = float(np.mean([o.centre_m for o in side]))
+        sign = self._pending(pose, TURN_SIGNS, behind_m=self.p.instruction_range_m)
+        self.turn = self.choose(exits, sign.label if sign else None)
+        if sign is not None:
+            sign.done = True
+        lateral = -lane.offset * (lane.lane_width_m or self.p.lane_width_m) if lane.found else 0.0
+        self.path = pose.to_world(_junction_path(self.turn, y_c, lateral, self.p))
+        self.follow.reset()
+        return True
+
+    def _junction_step(self, pose: OdoPose, odo_m: float, speed: float) -> tuple[float, float, str]:
+        car = pose.to_car(self.path)
+        ahead = np.flatnonzero(car[:, 1] > 0.5)
+        remaining = np.hypot(*np.diff(self.path[ahead[0]:], axis=0).T).sum() if len(ahead) else 0.0
+        if not len(ahead) or remaining < 5.0:
+            self.path = None
+            self.cooldown_until_m = odo_m + 6.0
+            return 0.0, self.p.approach_speed / self.p.max_speed, "cruise"
+        lookahead = 3.0 + 0.3 * speed
+        d = np.hypot(car[:, 0], car[:, 1])
+        i = ahead[np.argmin(np.abs(d[ahead] - lookahead))]
+        x, y = car[i]
+        kappa = 2.0 * x / max(x * x + y * y, 1e-6)
+        steering = math.atan(self.p.wheelbase_m * kappa) / math.radians(25.0)
+        v = self.p.junction_speed if self.turn != "straight" else self.p.approach_speed
+        return float(np.clip(steering, -1, 1)), v / self.p.max_speed, f"junction-{self.turn}"
+
+
+def _junction_path(turn: str, y_c: float, lateral_m: float, p: BehaviourParams) -> np.ndarray:
+    """The path through a junction in the car frame (x right, y ahead), from the car's lane
+    (lateral_m: the lane centre's x) to the chosen exit lane, sampled every 0.25 m."""
+    h = p.lane_width_m / 2
+    if turn == "straight":
+        ys = np.arange(0.0, y_c + 10.0, 0.25)
+        return np.column_stack([np.full_like(ys, lateral_m), ys])
+    if turn == "right":
+        r, y_exit, sgn = p.right_radius_m, y_c - h, 1.0
+    else:
+        r, y_exit, sgn = p.left_radius_m, y_c + h, -1.0
+    y0 = max(y_exit - r, 0.5)
+    lead = np.column_stack([np.full(int(y0 / 0.25) + 1, lateral_m), np.linspace(0, y0, int(y0 / 0.25) + 1)])
+    a = np.linspace(0, math.pi / 2, max(8, int(r * math.pi / 2 / 0.25)))
+    arc = np.column_stack([lateral_m + sgn * r * (1 - np.cos(a)), y0 + r * np.sin(a)])
+    tail_x = np.arange(0.25, 12.0, 0.25)
+    tail = np.column_stack([arc[-1, 0] + sgn * tail_x, np.full_like(tail_x, arc[-1, 1])])
+    return np.concatenate([lead, arc, tail])

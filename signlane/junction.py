@@ -1,0 +1,124 @@
+"""Junction perception: where the road opens to the side ahead, and whether it goes on straight.
+
+Lane markings vanish at a junction, so this looks at the road surface instead. In a bird's-eye
+view of the ground ahead, a pixel is "road" when its colour is close to the asphalt just in
+front of the car (the car is on the road, so that patch is a free, per-frame colour reference),
+or bright paint. A side opening is a run of rows where the strip beyond the road edge on that
+side is mostly road; straight-on is road beyond the far edge of the side road.
+
+Ground frame: metres, x right of the car, y ahead, with the car on its lane's centre.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from signlane.camera import BirdsEye, Camera
+
+
+@dataclass(frozen=True)
+class Opening:
+    near_m: float  # ground y where the side road begins
+    far_m: float  # where it ends (or the view ends: see `closed`)
+    closed: bool  # the far edge was seen
+
+    @property
+    def centre_m(self) -> float:
+        return 0.5 * (self.near_m + self.far_m)
+
+
+@dataclass(frozen=True)
+class JunctionView:
+    left: Opening | None
+    right: Opening | None
+    straight: bool | None  # road beyond the side road; None = not judged (no opening or not seen)
+    road_mask: np.ndarray | None = None  # uint8 bird's-eye 0/255, for people
+
+
+@dataclass(frozen=True)
+class JunctionParams:
+    x_half_m: float = 12.0
+    y_range_m: tuple[float, float] = (2.0, 24.0)
+    px_per_m: float = 5.0
+    lane_width_m: float = 3.2
+    strip_m: tuple[float, float] = (2.0, 4.5)  # side strip, metres beyond the road edge
+    road_frac: float = 0.55  # a row of the strip counts as road above this fraction
+    min_open_m: float = 3.5  # shortest opening (a side road is about 7 m wide)
+    lab_tol: tuple[float, float, float] = (28.0, 9.0, 9.0)
+
+
+class JunctionDetector:
+    """Stateless per frame; builds its bird's-eye view once per camera."""
+
+    def __init__(self, camera: Camera, params: JunctionParams | None = None):
+        self.p = params or JunctionParams()
+        p = self.p
+        size = (int(2 * p.x_half_m * p.px_per_m), int((p.y_range_m[1] - p.y_range_m[0]) * p.px_per_m))
+        self.bev: BirdsEye = camera.birdseye(size, (-p.x_half_m, p.x_half_m), p.y_range_m)
+        ones = np.full((camera.height, camera.width), 255, np.uint8)
+        self.visible = self.bev.warp(ones, cv2.INTER_NEAREST) > 0
+
+    def _col(self, x_m: float) -> int:
+        p = self.p
+        return int(np.clip((x_m + p.x_half_m) * p.px_per_m, 0, self.bev.size[0] - 1))
+
+    def _y_of_row(self, row: np.ndarray | float) -> np.ndarray | float:
+        return self.p.y_range_m[1] - (np.asarray(row) + 0.5) / self.p.px_per_m
+
+    def road_mask(self, image_bgr: np.ndarray) -> np.ndarray:
+        """uint8 (h, w) bird's-eye mask, 255 where the ground looks like the road ahead of the car."""
+        p = self.p
+        lab = cv2.cvtColor(self.bev.warp(image_bgr), cv2.COLOR_BGR2LAB).astype(np.int16)
+        y0, y1 = p.y_range_m[0], p.y_range_m[0] + 3.0
+        rows = slice(int((p.y_range_m[1] - y1) * p.px_per_m), int((p.y_range_m[1] - y0) * p.px_per_m))
+        cols = slice(self._col(-0.9), self._col(0.9))
+        ref = np.median(lab[rows, cols].reshape(-1, 3), axis=0)
+        d = np.abs(lab - ref.astype(np.int16))
+        road = (d[..., 0] < p.lab_tol[0]) & (d[..., 1] < p.lab_tol[1]) & (d[..., 2] < p.lab_tol[2])
+        paint = (lab[..., 0] > ref[0] + 25) & (np.abs(lab[..., 1] - 128) < 20)
+        mask = ((road | paint) & self.visible).astype(np.uint8) * 255
+        return cv2.morphologyEx(mask, cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
+
+    def _runs(self, frac: np.ndarray, seen: np.ndarray) -> Opening | None:
+        """The nearest run of road rows (bottom = near) long enough to be a side road."""
+        p = self.p
+        n = len(frac)
+        is_road = frac > p.road_frac
+        row = n - 1
+        while row >= 0:
+            if is_road[row] and seen[row]:
+                top = row
+                while top - 1 >= 0 and is_road[top - 1]:
+                    top -= 1
+                near, far = float(self._y_of_row(row)), float(self._y_of_row(top))
+                closed = top > 0 and bool(seen[top - 1])
+                if far - near >= p.min_open_m or (not closed and far - near >= 1.5):
+                    return Opening(near, far, closed)
+                row = top - 1
+            else:
+                row -= 1
+        return None
+
+    def detect(self, image_bgr: np.ndarray, lane_width_m: float | None = None) -> JunctionView:
+        """Openings left and right of the ego road in an image from this detector's camera."""
+        p = self.p
+        lw = lane_width_m or p.lane_width_m
+        mask = self.road_mask(image_bgr)
+        road_edges = (-1.5 * lw - 0.5, 0.5 * lw + 0.5)  # two-lane road, car in the right lane
+        out = {}
+        for side, edge, sgn in (("left", road_edges[0], -1), ("right", road_edges[1], 1)):
+            a, b = sorted((edge + sgn * p.strip_m[0], edge + sgn * p.strip_m[1]))
+            strip = mask[:, self._col(a):self._col(b) + 1] > 0
+            seen = self.visible[:, self._col(a):self._col(b) + 1].mean(axis=1) > 0.8
+            out[side] = self._runs(strip.mean(axis=1), seen)
+        straight = None
+        opening = out["right"] or out["left"]
+        if opening is not None and opening.closed:
+            y_a, y_b = opening.far_m + 1.0, opening.far_m + 4.0
+            r0, r1 = int((p.y_range_m[1] - y_b) * p.px_per_m), int((p.y_range_m[1] - y_a) * p.px_per_m)
+            if r0 >= 0:
+                block = mask[r0:r1, self._col(-lw):self._col(0.0) + 1] > 0
+                straight = bool(block.mean() > 0.5)
+        return JunctionView(out["left"], out["right"], straight, mask)

@@ -1,0 +1,35 @@
+"""The sign stage: colour-mask proposals -> classifier (when a model is present) -> N-of-M confirmation.
+
+One object per stream (the confirmation remembers recent frames). `step(image)` returns this
+frame's detections and the confirmed ones.
+"""
+from __future__ import annotations
+
+from signlane.config import SignsConfig
+from signlane.signs import proposals
+from signlane.signs.classifier import DEFAULT_MODEL, SignClassifier
+from signlane.signs.confirm import SignConfirmer
+from signlane.types import SignDetection
+
+
+class SignStage:
+    def __init__(self, config: SignsConfig):
+        self.config = config
+        self.params = (proposals.ProposalParams.published() if config.variant == "published"
+                       else proposals.ProposalParams())
+        path = config.model or DEFAULT_MODEL
+        # a named model must load; the shipped one may be absent (then proposals only)
+        self.classifier = SignClassifier(path) if (config.model or DEFAULT_MODEL.exists()) else None
+        self.confirmer = SignConfirmer(config.confirm_n, config.confirm_m)
+        self.confirmed: list[SignDetection] = []
+
+    def step(self, image_bgr) -> tuple[tuple[SignDetection, ...], list[SignDetection]]:
+        found = proposals.propose(image_bgr, self.params)
+        if self.classifier is not None:
+            found = self.classifier.label_detections(image_bgr, found, self.config.min_score)
+        self.confirmed = self.confirmer.step(found)
+        return tuple(found), self.confirmed
+
+    def reset(self) -> None:
+        self.confirmer.reset()
+        self.confirmed = []

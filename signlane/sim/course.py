@@ -1,0 +1,173 @@
+"""Where the car is on the road network, and what the rules asked of it: the simulator's referee.
+
+The car picks its own exits, so there is no fixed route: the tracker follows it tile by tile
+(entering through a port, leaving through another), measures cross-track error against the ego
+lane of the paths the current tile allows, and records junction turns against the sign on that
+approach, stops at stop signs, off-road events and laps.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from signlane.world.tiles import SIDES, Port, Tile
+from signlane.world.track import Track, WorldObject
+
+TURN_RULES = {"left": lambda t: t == "left", "right": lambda t: t == "right", "straight": lambda t: t == "straight",
+              "no_left": lambda t: t != "left", "no_right": lambda t: t != "right"}
+STOP_ZONE_M = (0.0, 12.0)  # a full stop counts when the car is this far before the sign
+STOPPED_SPEED = 0.05
+
+
+@dataclass
+class StopWatch:
+    sign: WorldObject
+    stopped_since: float | None = None
+    complied: bool = False
+    active: bool = False
+
+
+@dataclass
+class CourseLog:
+    junctions: list[dict] = field(default_factory=list)
+    stops: list[dict] = field(default_factory=list)
+    offroad: list[dict] = field(default_factory=list)
+
+
+def _polyline_offset(pts: np.ndarray, p: np.ndarray) -> tuple[float, float]:
+    """(distance, signed lateral + right of travel) from p to a polyline, and arc position."""
+    a, b = pts[:-1], pts[1:]
+    ab = b - a
+    t = np.clip(np.einsum("ij,ij->i", p - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-12), 0, 1)
+    q = a + t[:, None] * ab
+    d = np.hypot(*(p - q).T)
+    i = int(np.argmin(d))
+    cross = ab[i, 0] * (p[1] - a[i, 1]) - ab[i, 1] * (p[0] - a[i, 0])
+    return float(d[i]), float(-np.sign(cross) * d[i])  # CCW cross > 0 = left of travel
+
+
+class CourseTracker:
+    def __init__(self, track: Track, tile: Tile, entry: Port):
+        self.track = track
+        self.lane_w = track.style.lane_width
+        self.tile, self.entry = tile, entry
+        self.approach_signs = self._approach_signs()
+        self.stops = [StopWatch(s) for s in track.signs if s.kind == "stop"]
+        self.log = CourseLog()
+        self.visited = {(tile.index, entry.side)}
+        self.laps = 0
+        self.offroad = False
+        self._lanes: dict = {}
+
+    # --- geometry -------------------------------------------------------------------------
+    def cell_of(self, x: float, y: float) -> tuple[int, int]:
+        return (int(round(x / self.track.cell_m + self.track.cols / 2)),
+                int(round(-y / self.track.cell_m + self.track.rows / 2)))
+
+    def lane_path(self, tile: Tile, entry: Port, exit_port: Port) -> np.ndarray:
+        key = (tile.index, entry, exit_port)
+        if key not in self._lanes:
+            c = self.track.centreline(tile, entry, exit_port)
+            d = np.gradient(c, axis=0)
+            d /= np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-12)[:, None]
+            right = np.column_stack([d[:, 1], -d[:, 0]])
+            self._lanes[key] = c + self.track.style.ego_lane_offset() * right
+        return self._lanes[key]
+
+    def cross_track(self, x: float, y: float) -> float:
+        """Signed metres from the nearest ego-lane path through the current tile (+ right)."""
+        best = (math.inf, 0.0)
+        for ex in self.track.exits(self.tile, self.entry):
+            d, lat = _polyline_offset(self.lane_path(self.tile, self.entry, ex), np.array([x, y]))
+            best = min(best, (d, lat))
+        return best[1]
+
+    def nearest_lane_pose(self, x: float, y: float) -> tuple[float, float, float]:
+        """The closest point on the current tile's ego-lane paths and the heading there."""
+        best = None
+        for ex in self.track.exits(self.tile, self.entry):
+            pts = self.lane_path(self.tile, self.entry, ex)
+            i = int(np.argmin(np.hypot(*(pts - (x, y)).T)))
+            j = min(i + 1, len(pts) - 1)
+            k = max(j - 1, 0)
+            d = float(np.hypot(*(pts[i] - (x, y))))
+            if best is None or d < best[0]:
+                best = (d, pts[i], math.atan2(*(pts[j] - pts[k])[::-1]))
+        return float(best[1][0]), float(best[1][1]), best[2]
+
+    # --- signs ------------------------------------------------------------------------------
+    def _approach_signs(self) -> dict[tuple[int, str], str]:
+        """(junction tile, entry side) -> the turn sign standing on that approach."""
+        out = {}
+        cm = self.track.cell_m
+        for tile in self.track.tiles:
+            if not tile.junction:
+                continue
+            for port in tile.ports:
+                su, sv = SIDES[port.side]
+                edge = self.track.map_to_world(np.array([[port.cell[0] - self.track.cols / 2 + su * 0.5,
+                                                          port.cell[1] - self.track.rows / 2 + sv * 0.5]]))[0]
+                inward = -np.array([su, -sv], float)  # world direction of travel into the tile
+                for s in self.track.signs:
+                    if s.kind not in TURN_RULES:
+                        continue
+                    rel = np.array([s.x, s.y]) - edge
+                    back = -float(rel @ inward)
+                    facing = np.array([math.cos(s.facing), math.sin(s.facing)])
+                    if 0 < back < 2.5 * cm and abs(float(rel @ [inward[1], -inward[0]])) < cm and facing @ inward < -0.5:
+                        out[(tile.index, port.side)] = s.kind
+        return out
+
+    # --- per frame -----------------------------------------------------------------------------
+    def update(self, t: float, x: float, y: float, heading: float, speed: float) -> float:
+        """Advance the tracker to the car's pose; returns the cross-track error in metres."""
+        cell = self.cell_of(x, y)
+        if cell not in self.tile.cells:
+            self._leave(t, cell, x, y)
+        self._watch_stops(t, x, y, heading, speed)
+        return self.cross_track(x, y)
+
+    def _leave(self, t: float, cell: tuple[int, int], x: float, y: float) -> None:
+        ports = [p for p in self.track.exits(self.tile, self.entry) if p.neighbour == cell]
+        if not ports:
+            return  # off the road network or cutting a corner: stay until it enters a neighbour
+        exit_port = ports[0]
+        if self.tile.junction:
+            turn = self.track.turn_of(self.entry, exit_port)
+            sign = self.approach_signs.get((self.tile.index, self.entry.side))
+            ok = TURN_RULES[sign](turn) if sign else None
+            self.log.junctions.append({"t": round(t, 2), "cell": [self.tile.col, self.tile.row], "turn": turn,
+                                       "sign": sign, "complied": ok})
+        self.tile, self.entry = self.track.next_tile(self.tile, exit_port)
+        state = (self.tile.index, self.entry.side)
+        if state in self.visited:
+            self.laps += 1
+            self.visited = set()
+        self.visited.add(state)
+
+    def _watch_stops(self, t: float, x: float, y: float, heading: float, speed: float) -> None:
+        fwd = np.array([math.cos(heading), math.sin(heading)])
+        for w in self.stops:
+            s = w.sign
+            facing = np.array([math.cos(s.facing), math.sin(s.facing)])
+            rel = np.array([x - s.x, y - s.y])
+            u = float(rel @ facing)  # metres in front of the sign's face
+            lateral = abs(float(rel @ [facing[1], -facing[0]]))
+            approaching = facing @ fwd < -0.5 and lateral < 0.8 * self.track.cell_m
+            if approaching and 0 < u < 30:
+                w.active = True
+                in_zone = STOP_ZONE_M[0] <= u <= STOP_ZONE_M[1]
+                if in_zone and speed < STOPPED_SPEED:
+                    w.stopped_since = t if w.stopped_since is None else w.stopped_since
+                    if t - w.stopped_since >= 2.0:
+                        w.complied = True
+                else:
+                    w.stopped_since = None
+            elif w.active and u <= 0 and lateral < 0.8 * self.track.cell_m:
+                self.log.stops.append({"t": round(t, 2), "sign": [round(s.x, 2), round(s.y, 2)],
+                                       "complied": w.complied})
+                w.active, w.complied, w.stopped_since = False, False, None
+            elif w.active and u >= 30:
+                w.active, w.complied, w.stopped_since = False, False, None

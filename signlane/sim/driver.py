@@ -1,0 +1,182 @@
+"""The driver behind the drive server: telemetry in, Command out.
+
+Per frame: odometry from speed and wheel angle; lanes and junction openings on a scaled frame;
+signs (proposals, classifier, N-of-M confirmation) on the full frame, placed in the odometry
+frame from their box size; then the behaviour state machine (signlane/behaviour.py). One Driver
+per connection: it carries tracking, confirmation, odometry and the state machine.
+
+With `sync_signs=False` the sign stage runs in a worker thread beside the lane path on the
+newest frame it can take, and steering uses its latest result, so classification never stalls
+steering (real time). Synchronous signs make lockstep runs deterministic.
+"""
+from __future__ import annotations
+
+import math
+import threading
+import time
+
+import cv2
+import numpy as np
+
+from signlane import lanes
+from signlane.behaviour import Behaviour, BehaviourParams
+from signlane.config import Config
+from signlane.junction import JunctionDetector
+from signlane.odometry import Odometry, OdoPose
+from signlane.sim.protocol import Telemetry
+from signlane.types import Command, Frame, Perception, SignDetection
+
+
+def sign_positions(confirmed: list[SignDetection], found: tuple[SignDetection, ...], camera, pose: OdoPose,
+                   size_m: float) -> list[tuple[str, np.ndarray]]:
+    """This frame's detections of confirmed labels, placed in the odometry frame: distance from
+    the face height in pixels, bearing from the box centre."""
+    labels = {d.label for d in confirmed}
+    out = []
+    for d in found:
+        if d.label not in labels or d.box[3] < 4:
+            continue
+        x, y, w, h = d.box
+        dist = camera.focal_px * size_m / h
+        bearing = math.atan2(x + w / 2 - camera.width / 2, camera.focal_px)
+        car = np.array([[dist * math.sin(bearing), dist * math.cos(bearing)]])
+        out.append((d.label, pose.to_world(car)[0]))
+    return out
+
+
+class _SignWorker:
+    """Runs the sign stage on the newest submitted frame in a thread; never blocks the caller."""
+
+    def __init__(self, stage):
+        self.stage = stage
+        self._lock = threading.Lock()
+        self._job = None
+        self._result: tuple = ((), [], None)
+        self._wake = threading.Event()
+        self._stop = False
+        self._thread = threading.Thread(target=self._run, daemon=True, name="signs")
+        self._thread.start()
+
+    def submit(self, image: np.ndarray, pose: OdoPose) -> None:
+        with self._lock:
+            self._job = (image, pose)  # a newer frame replaces one not yet taken
+        self._wake.set()
+
+    def latest(self) -> tuple:
+        with self._lock:
+            result, self._result = self._result, ((), self._result[1], None)
+        return result  # each result is used once; the confirmed list stays
+
+    def _run(self) -> None:
+        while not self._stop:
+            self._wake.wait(0.2)
+            self._wake.clear()
+            with self._lock:
+                job, self._job = self._job, None
+            if job is None:
+                continue
+            found, confirmed = self.stage.step(job[0])
+            with self._lock:
+                self._result = (found, list(confirmed), job[1])
+
+    def close(self) -> None:
+        self._stop = True
+        self._wake.set()
+        self._thread.join(timeout=2.0)
+
+
+class Driver:
+    def __init__(self, config: Config | None = None, sync_signs: bool = True):
+        self.config = config or Config()
+        dc = self.config.drive
+        self.sync_signs = sync_signs
+        lanes.params_for(self.config.lanes.method, self.config.lanes.variant)  # fail early on a bad name
+        self.behaviour = Behaviour(BehaviourParams(
+            max_speed=dc.max_speed, cruise_speed=dc.cruise_speed, approach_speed=dc.approach_speed,
+            stop_hold_s=dc.stop_hold_s, coast_decel=dc.coast_decel, wheelbase_m=dc.wheelbase_m))
+        self.odometry = Odometry(dc.wheelbase_m)
+        self.signs = None
+        self._worker = None
+        if self.config.signs.enabled:
+            from signlane.signs.stage import SignStage
+            self.signs = SignStage(self.config.signs)
+            if not sync_signs:
+                self._worker = _SignWorker(self.signs)
+        self._size = None
+        self.seq = 0
+
+    def _setup(self, width: int, height: int) -> None:
+        if self._size == (width, height):
+            return
+        cfg = self.config
+        lw = cfg.drive.lanes_width
+        scale = lw / width if 0 < lw < width else 1.0
+        self.scaled = (round(width * scale), round(height * scale))
+        self.camera = cfg.camera.camera(width, height)
+        small = cfg.camera.camera(*self.scaled)
+        self.lane = lanes.get(cfg.lanes.method, camera=small, variant=cfg.lanes.variant)
+        self.junctions = JunctionDetector(small)
+        self._size = (width, height)
+
+    def step(self, telemetry: Telemetry, now: float | None = None) -> tuple[Perception, Command]:
+        image = telemetry.image_bgr
+        h, w = image.shape[:2]
+        self._setup(w, h)
+        t = telemetry.time if telemetry.time is not None else (time.monotonic() if now is None else now)
+        timing: dict[str, float] = {}
+        t0 = time.perf_counter()
+        pose = self.odometry.step(t, telemetry.speed, telemetry.steering_angle)
+        small = image if self.scaled == (w, h) else cv2.resize(image, self.scaled, interpolation=cv2.INTER_AREA)
+        lane = self.lane(small)
+        t1 = time.perf_counter()
+        timing["lanes"] = (t1 - t0) * 1e3
+        view = self.junctions.detect(small, lane.lane_width_m or None)
+        t2 = time.perf_counter()
+        timing["junction"] = (t2 - t1) * 1e3
+        signs = self._signs(image, pose)
+        t3 = time.perf_counter()
+        timing["signs"] = (t3 - t2) * 1e3
+        was = self.behaviour.path is not None
+        steering, throttle, state = self.behaviour.step(t, pose, self.odometry.distance_m, telemetry.speed,
+                                                        lane, view)
+        if was and self.behaviour.path is None:
+            self.lane.reset()  # the tracker's last fit is from before the junction
+        timing["control"] = (time.perf_counter() - t3) * 1e3
+        frame = Frame(image, t, self.seq)
+        self.seq += 1
+        return Perception(frame, lane, signs, timing), Command(steering, throttle, state)
+
+    def _signs(self, image: np.ndarray, pose: OdoPose) -> tuple[SignDetection, ...]:
+        if self.signs is None:
+            return ()
+        if self._worker is None:
+            found, confirmed = self.signs.step(image)
+            at = pose
+        else:
+            self._worker.submit(image, pose)
+            found, confirmed, at = self._worker.latest()
+            if at is None:
+                return ()
+        placed = sign_positions(confirmed, found, self.camera, at, self.config.drive.sign_size_m)
+        self.behaviour.observe_signs(placed)
+        return tuple(found)
+
+    def reset(self) -> None:
+        if self._size is not None:
+            self.lane.reset()
+        self.behaviour.reset()
+        self.odometry.reset()
+        if self.signs is not None:
+            self.signs.reset()
+        self.seq = 0
+
+    def close(self) -> None:
+        if self._worker is not None:
+            self._worker.close()
+            self._worker = None
+
+    def __enter__(self) -> "Driver":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()

@@ -1,0 +1,57 @@
+"""The drive's score: laps, autonomy, off-road events, cross-track error, rule compliance, rates."""
+from __future__ import annotations
+
+import numpy as np
+
+INTERVENTION_S = 6.0  # PilotNet: each intervention costs 6 seconds of autonomy
+OFFROAD_MARGIN_M = 0.5  # off the lane: the car's centre this far beyond the lane's edge
+
+
+class Score:
+    def __init__(self, lane_width_m: float):
+        self.lane_w = lane_width_m
+        self.cte: list[float] = []
+        self.speeds: list[float] = []
+        self.latency: list[float] = []
+        self.offroad_events = 0
+        self.offroad_log: list[float] = []
+
+    def frame(self, t: float, cte_m: float, speed: float, latency_ms: float | None) -> bool:
+        """Record one frame; True when the car has just gone off its lane (an intervention)."""
+        self.cte.append(abs(cte_m) / self.lane_w)
+        self.speeds.append(speed)
+        if latency_ms is not None:
+            self.latency.append(latency_ms)
+        if abs(cte_m) > self.lane_w / 2 + OFFROAD_MARGIN_M:
+            self.offroad_events += 1
+            self.offroad_log.append(round(t, 2))
+            return True
+        return False
+
+    def report(self, course, distance_m: float, time_s: float) -> dict:
+        turns = [j for j in course.log.junctions if j["sign"] is not None]
+        stops = course.log.stops
+        lat = np.array(self.latency) if self.latency else np.zeros(1)
+        autonomy = 100.0 * max(0.0, 1.0 - self.offroad_events * INTERVENTION_S / max(time_s, 1e-9))
+        return {"laps": int(course.laps), "autonomy": round(autonomy, 2), "offroad_events": self.offroad_events,
+                "cte_mean": round(float(np.mean(self.cte)) if self.cte else 0.0, 4),
+                "cte_max": round(float(np.max(self.cte)) if self.cte else 0.0, 4),
+                "stops": {"required": len(stops), "complied": sum(s["complied"] for s in stops)},
+                "turns": {"required": len(turns), "complied": sum(bool(j["complied"]) for j in turns)},
+                "distance_m": round(distance_m, 2), "time_s": round(time_s, 2),
+                "mean_speed": round(distance_m / max(time_s, 1e-9), 3),
+                "fps": 0.0, "latency_ms": {"median": round(float(np.median(lat)), 2),
+                                           "p99": round(float(np.percentile(lat, 99)), 2)},
+                "junctions": course.log.junctions, "stop_log": stops, "offroad_at_s": self.offroad_log}
+
+
+def format_report(rep: dict) -> str:
+    rows = [("laps", rep["laps"]), ("autonomy %", f"{rep['autonomy']:.1f}"), ("off-road events", rep["offroad_events"]),
+            ("cross-track mean / max (lane widths)", f"{rep['cte_mean']:.3f} / {rep['cte_max']:.3f}"),
+            ("stops complied / required", f"{rep['stops']['complied']} / {rep['stops']['required']}"),
+            ("turns complied / required", f"{rep['turns']['complied']} / {rep['turns']['required']}"),
+            ("distance m / time s", f"{rep['distance_m']:.0f} / {rep['time_s']:.1f}"),
+            ("mean speed m/s", f"{rep['mean_speed']:.2f}"), ("frames/s (wall)", f"{rep['fps']:.1f}"),
+            ("server latency median / p99 ms", f"{rep['latency_ms']['median']:.1f} / {rep['latency_ms']['p99']:.1f}")]
+    w = max(len(k) for k, _ in rows)
+    return "\n".join(f"{k:<{w}}  {v}" for k, v in rows)
