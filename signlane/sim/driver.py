@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 import threading
 import time
+from dataclasses import replace
 
 import cv2
 import numpy as np
@@ -142,6 +143,10 @@ class Driver:
         if was and self.behaviour.path is None:
             self.lane.reset()  # the tracker's last fit is from before the junction
         timing["control"] = (time.perf_counter() - t3) * 1e3
+        if self.scaled != (w, h):  # report the lane in the frame's own pixels
+            k = w / self.scaled[0]
+            lane = replace(lane, left=None if lane.left is None else lane.left * k,
+                           right=None if lane.right is None else lane.right * k)
         frame = Frame(image, t, self.seq)
         self.seq += 1
         return Perception(frame, lane, signs, timing), Command(steering, throttle, state)

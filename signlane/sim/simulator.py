@@ -103,10 +103,10 @@ def run_inprocess(sim: Simulator, driver, progress=None) -> dict:
     while not sim.done:
         msg = sim.observe()
         t0 = time.perf_counter()
-        _, cmd = driver.step(decode_telemetry(msg))
+        perception, cmd = driver.step(decode_telemetry(msg))
         sim.advance(cmd.steering, cmd.throttle, (time.perf_counter() - t0) * 1e3)
         if progress is not None:
-            progress(sim, cmd)
+            progress(sim, cmd, perception)
     return sim.report()
 
 

@@ -1,0 +1,80 @@
+"""One simulator run, start to finish: a track, the simulator, a driver (in-process, via a drive
+server this process starts, or an external server), an optional annotated video, and the report
+files (report JSON, top-down path PNG)."""
+from __future__ import annotations
+
+import json
+import logging
+import time
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from signlane.config import Config
+from signlane.draw import VideoOut, draw_boxes, draw_hud, draw_lane, write_image
+from signlane.fileio import atomic_write_json
+from signlane.sim.simulator import SimConfig, Simulator, run_client, run_inprocess
+from signlane.world.topdown import draw_topdown
+from signlane.world.track import Track
+
+log = logging.getLogger(__name__)
+
+
+def annotate_drive(image: np.ndarray, perception, command, speed: float, t: float) -> np.ndarray:
+    """A copy of a driven frame with what the driver saw and did: lanes, signs, state, command."""
+    out = image.copy()
+    if perception is not None:
+        draw_lane(out, perception.lane.left, perception.lane.right)
+        draw_boxes(out, [(d.label, d.score, d.box) for d in perception.signs])
+    draw_hud(out, [f"t {t:6.1f} s  speed {speed:4.1f} m/s", f"state {command.state}",
+                   f"steering {command.steering:+.2f}  throttle {command.throttle:.2f}"])
+    return out
+
+
+def run_session(track: Track, sim_config: SimConfig, out: Path | None, config: Config | None = None,
+                url: str | None = None, lockstep: bool = True, with_driver: bool = False,
+                video: bool = False, show_progress: bool = True) -> dict:
+    """Drive one run; returns the report (also written to out/report.json with out/path.png)."""
+    sim = Simulator(track, sim_config)
+    config = config or Config()
+    bar = tqdm(total=sim_config.laps, desc="laps", unit="lap", disable=not show_progress)
+    writer = None
+    if video and out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        writer = VideoOut(out / "drive.mp4", sim_config.fps, (sim_config.width, sim_config.height))
+
+    def progress(s, cmd, perception=None):
+        bar.n = s.course.laps
+        bar.set_postfix_str(f"t={s.t:.0f}s off={s.score.offroad_events}", refresh=s.frame % 20 == 0)
+        if writer is not None and perception is not None:
+            writer.write(annotate_drive(s.last_image, perception, cmd, s.vehicle.speed, s.t))
+
+    t0 = time.perf_counter()
+    try:
+        if url is None and not with_driver:
+            from signlane.sim.driver import Driver
+            with Driver(config, sync_signs=lockstep) as driver:
+                rep = run_inprocess(sim, driver, progress)
+        elif with_driver:
+            from signlane.sim.server import DriveServer, ServerOptions
+            with DriveServer(config, ServerOptions(port=0, sync_signs=lockstep)) as srv:
+                rep = run_client(sim, srv.url, lockstep, lambda s, c: progress(s, c))
+        else:
+            rep = run_client(sim, url, lockstep, lambda s, c: progress(s, c))
+    finally:
+        bar.close()
+        if writer is not None:
+            writer.close()
+    rep["fps"] = round(sim.frame / max(time.perf_counter() - t0, 1e-9), 2)
+    rep["map"] = track.name
+    rep["mode"] = "lockstep" if lockstep else f"real time {sim_config.fps:g} Hz"
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        atomic_write_json(out / "report.json", rep)
+        write_image(out / "path.png", draw_topdown(sim.renderer.scene, path_xy=np.array(sim.path)))
+    return rep
+
+
+def load_report(path: Path) -> dict:
+    return json.loads(Path(path).read_text())

@@ -1,0 +1,129 @@
+"""Driving: the car model, odometry, junction perception, the behaviour's rules, and short
+closed-loop drives in the local simulator (a lap; a stop at a stop sign)."""
+import math
+
+import numpy as np
+import pytest
+
+from signlane.behaviour import Behaviour, _junction_path, BehaviourParams
+from signlane.camera import Camera
+from signlane.config import Config
+from signlane.junction import JunctionDetector
+from signlane.odometry import Odometry
+from signlane.sim.driver import Driver
+from signlane.sim.simulator import SimConfig, Simulator, run_inprocess
+from signlane.sim.vehicle import Vehicle
+from signlane.world.effects import Effects
+from signlane.world.procedural import generate_map
+from signlane.world.render import Renderer
+from signlane.world.route import Pose, Route, random_policy
+from signlane.world.scene import build_scene
+from signlane.world.track import Track
+
+RING = {"map_name": "ring", "bg_id": 0, "map_size": {"x": 4, "y": 4},
+        "cell_datas": [{"id_inmap": 5, "tile_id": 2, "rot": 0}, {"id_inmap": 6, "tile_id": 2, "rot": 90},
+                       {"id_inmap": 10, "tile_id": 2, "rot": 180}, {"id_inmap": 9, "tile_id": 2, "rot": 270}],
+        "car_pos": {"x": 1.0, "y": 0.0}, "sign_obj_datas": []}
+
+
+def test_positive_steering_turns_right_and_throttle_is_a_target_speed():
+    car = Vehicle(Pose(0.0, 0.0, math.pi / 2))
+    for _ in range(100):
+        car.step(0.0, 0.5, 0.05)
+    assert car.speed == pytest.approx(5.0, abs=0.1)  # throttle 0.5 of max 10 m/s
+    car.step(1.0, 0.5, 1.0)
+    assert car.pose.heading < math.pi / 2 - 0.5 and car.pose.x > 0  # heading north, turned east
+    for _ in range(100):
+        car.step(0.0, 0.0, 0.05)
+    assert car.speed == 0.0  # coasting rolls it to a stop: VIA has no brakes
+
+
+def test_odometry_follows_the_car_round_a_bend():
+    car, odo = Vehicle(Pose(0.0, 0.0, math.pi / 2)), Odometry(1.8)
+    t = 0.0
+    for k in range(120):
+        car.step(0.6 if k > 40 else 0.0, 0.4, 0.05)
+        t += 0.05
+        pose = odo.step(t, car.speed, car.wheel_deg)
+    assert math.hypot(pose.x - car.pose.x, pose.y - car.pose.y) < 0.05 * car.odometer_m
+    assert abs(pose.heading - car.pose.heading) < 0.1
+
+
+def test_exit_choice_follows_signs_and_keeps_straight_when_it_can():
+    b = Behaviour()
+    assert b.choose({"left", "right", "straight"}, None) == "straight"
+    assert b.choose({"left", "right"}, None) == "right"
+    assert b.choose({"left", "right", "straight"}, "left") == "left"
+    assert b.choose({"left", "straight"}, "no_left") == "straight"
+    assert b.choose({"left", "right"}, "no_right") == "left"
+    assert b.choose({"right", "straight"}, "left") == "straight"  # no such exit: ignore the sign
+
+
+def test_junction_paths_end_on_the_exit_lane():
+    p = BehaviourParams()
+    right, left = _junction_path("right", 14.0, 0.0, p), _junction_path("left", 14.0, 0.0, p)
+    assert right[-1, 1] == pytest.approx(14.0 - 1.6) and right[-1, 0] > 10  # heading right, exit lane near side
+    assert left[-1, 1] == pytest.approx(14.0 + 1.6) and left[-1, 0] < -10
+    assert np.all(np.diff(_junction_path("straight", 14.0, 0.2, p)[:, 1]) > 0)
+
+
+@pytest.fixture(scope="module")
+def junction_frames():
+    """(image, truth junction) 6 m before each of the first junctions of a procedural track."""
+    track = Track.from_via(generate_map(0, size="medium"))
+    route = Route.drive(track, 1500, random_policy(np.random.default_rng(1)))
+    renderer = Renderer(build_scene(track, seed=0))
+    cam = Camera(320, 240)
+    out = []
+    for leg in [l for l in route.legs if l.tile.junction][:5]:
+        s = renderer.render_on_route(route, leg.s0 - 6.0, cam, 0.0, 0.0, Effects.clean(), np.random.default_rng(0))
+        out.append((s.image, s.truth.junction))
+    plain = renderer.render_on_route(route, route.legs[0].s0 + 2.0, cam, 0.0, 0.0, Effects.clean())
+    return cam, out, plain.image
+
+
+def test_junction_detector_sees_the_exits(junction_frames):
+    cam, frames, plain = junction_frames
+    det = JunctionDetector(cam)
+    for image, truth in frames:
+        view = det.detect(image)
+        exits = {s for s, o in (("left", view.left), ("right", view.right)) if o is not None}
+        assert exits == set(truth.exits) - {"straight"}
+        assert view.straight == ("straight" in truth.exits)
+        side = view.right or view.left
+        assert abs(side.centre_m - (truth.distance + 6.0)) < 1.0  # the side road's centre, 6 m into the cell
+    view = det.detect(plain)
+    assert view.left is None and view.right is None
+
+
+def _sign_ahead(track: Track, s_m: float, label_id: int) -> dict:
+    """A VIA sign entry beside the ego lane s_m metres along the start route, facing the car."""
+    route = Route.drive(track, s_m + 20)
+    pose = route.pose_at(s_m)
+    xy = np.array([pose.x, pose.y]) + 3.4 * pose.right
+    facing = pose.heading + math.pi
+    return {"sign_id": label_id, "pos": {"x": xy[0] / track.cell_m, "y": -xy[1] / track.cell_m},
+            "rot": (90.0 - math.degrees(facing)) % 360}
+
+
+def test_a_lockstep_drive_completes_a_lap_of_a_ring():
+    sim = Simulator(Track.from_via(RING), SimConfig(width=320, height=240, max_seconds=60))
+    with Driver(Config(signs=Config().signs.__class__(enabled=False))) as driver:
+        rep = run_inprocess(sim, driver)
+    assert rep["laps"] == 1 and rep["offroad_events"] == 0
+    assert rep["cte_mean"] < 0.1 and rep["time_s"] < 40
+
+
+def test_a_stop_sign_makes_the_car_stop_and_hold():
+    data = generate_map(0, size="small", sign_prob=0.0)
+    track = Track.from_via(data)
+    data["sign_obj_datas"] = [_sign_ahead(track, 30.0, 4)]
+    track = Track.from_via(data)
+    sim = Simulator(track, SimConfig(max_seconds=16))
+    speeds = []
+    with Driver() as driver:
+        rep = run_inprocess(sim, driver, lambda s, c, p: speeds.append((s.t, s.vehicle.speed, c.state)))
+    stopped = [t for t, v, _ in speeds if v < 0.05 and t > 1.0]
+    assert stopped and max(stopped) - min(stopped) >= 2.0  # a full stop, held 2 s
+    assert rep["stops"] == {"required": 1, "complied": 1}
+    assert speeds[-1][1] > 1.0  # and then it went on
