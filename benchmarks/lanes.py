@@ -2,6 +2,8 @@
 
 The baseline row is a bare cv2.Canny on the same frames (the cheapest step every classical
 method pays), measured in the same run; 'x canny' says how many of those a method costs.
+The learned `segnet` (when its model is present) gets two rows: `segnet:model` is the network
+alone (onnxruntime on the preprocessed input, 1 thread) and `segnet:robust` the whole method.
 
     python benchmarks/lanes.py [--frames 60] [--repeats 5] [--method NAME ...]
 """
@@ -43,6 +45,9 @@ def main() -> None:
         base = median_ms(lambda f: cv2.Canny(cv2.cvtColor(f, cv2.COLOR_BGR2GRAY), 150, 200), frames, args.repeats)
         rows.append((f"{w}x{h}", "cv2.Canny (baseline)", base, 1.0))
         for name in methods:
+            if name == "segnet":
+                rows += _segnet_rows(f"{w}x{h}", samples, base, args.repeats)
+                continue
             for variant in ("robust", "published"):
                 m = lanes.get(name, camera=samples[0].truth.nominal_camera, variant=variant)
                 t = median_ms(lambda f: (m.reset(), m(f)), frames, args.repeats)
@@ -50,6 +55,20 @@ def main() -> None:
     print(f"{'size':>8}  {'method':<28} {'ms/frame':>9} {'x canny':>8}")
     for size, name, ms, ratio in rows:
         print(f"{size:>8}  {name:<28} {ms:9.2f} {ratio:8.1f}")
+
+
+def _segnet_rows(size: str, samples, base: float, repeats: int) -> list[tuple]:
+    """Model-only and whole-method ms of segnet; none when no model is present."""
+    from signlane.lanes import seg_model
+    if not seg_model.DEFAULT_MODEL.exists():
+        print(f"segnet skipped: no model at {seg_model.DEFAULT_MODEL}")
+        return []
+    model = seg_model.load(str(seg_model.DEFAULT_MODEL), 1)
+    inputs = [seg_model.preprocess_frames([s.image], model.spec) for s in samples]
+    t_model = median_ms(model.model.run, inputs, repeats)
+    m = lanes.get("segnet", camera=samples[0].truth.nominal_camera)
+    t = median_ms(lambda f: (m.reset(), m(f)), [s.image for s in samples], repeats)
+    return [(size, "segnet:model", t_model, t_model / base), (size, "segnet:robust", t, t / base)]
 
 
 if __name__ == "__main__":

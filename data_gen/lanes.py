@@ -21,7 +21,7 @@ import numpy as np
 from data_gen.common import (PARTIAL, atomic_imwrite, atomic_write_json, atomic_write_text, partial_dir, prepare_output,
                              run_indexed, sample_id, write_manifest)
 from signlane.world.render import Sample
-from signlane.world.sampling import FrameSampler, SamplerConfig
+from signlane.world.sampling import HEAVY, FrameSampler, SamplerConfig
 from signlane.world.truth import GroundTruth
 
 log = logging.getLogger(__name__)
@@ -121,15 +121,20 @@ def lanes_config(n: int, seed: int, sampler: SamplerConfig, drivable: bool) -> d
 
 def generate_lanes(out: str | Path, n: int, seed: int, width: int = 320, height: int = 240, workers: int = 1,
                    resume: bool = False, preview: bool = False, effects: str = "mixed", randomise: bool = True,
-                   drivable: bool = False) -> dict:
+                   drivable: bool = False, preset: str = "default") -> dict:
     """Write a lane dataset of `n` frames to `out` (layout in the module docstring); return its
     manifest. Frame i depends only on (seed, i), so `workers` never changes the bytes written.
+    preset 'heavy' replaces `effects` with the sampler's HEAVY randomisation (night, rain, strong
+    wear and shadows, wider camera spread, 16:9 frames among the 4:3 ones).
     Raises DatasetError if `out` is not empty and is not this dataset or, without `resume`,
     holds an unfinished run."""
     if n < 1:
         raise ValueError(f"n must be >= 1, got {n}")
     out = Path(out)
-    sampler = SamplerConfig(width=width, height=height, effects=effects, randomise=randomise)
+    if preset not in ("default", "heavy"):
+        raise ValueError(f"preset must be 'default' or 'heavy', not {preset!r}")
+    extra = dict(HEAVY) if preset == "heavy" else {"effects": effects}
+    sampler = SamplerConfig(width=width, height=height, randomise=randomise, **extra)
     config = lanes_config(n, seed, sampler, drivable)
     manifest = prepare_output(out, "lanes", config, resume)
     if manifest is None:

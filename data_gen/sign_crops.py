@@ -18,6 +18,10 @@ Box = tuple[int, int, int, int]
 SIGN_MIN_PX = 12  # smaller faces carry no readable symbol
 MAX_OCCLUDED = 0.5
 MAX_TRUNCATED = 0.5  # a sign mostly outside the frame is not a fair example of its class
+# grey-level spread (95th - 5th percentile) the middle of a face needs: below it exposure, glare,
+# fog or blur have washed the symbol into a flat patch nobody can read (the sprites' exposure cap,
+# for frames); 12 drops about 5 % of frame signs, all of them blank or pure noise when looked at
+MIN_FACE_CONTRAST = 12.0
 UNKNOWN_MIN_PX = 10
 PAD_MAX = 0.25  # crops look like imperfect proposals: 0-25 % padding per side ...
 SHIFT_MAX = 0.10  # ... and the box centre off by up to 10 % of its size
@@ -111,10 +115,24 @@ def _touches(a: Box, b: Box) -> bool:
     return a[0] < b[0] + b[2] and b[0] < a[0] + a[2] and a[1] < b[1] + b[3] and b[1] < a[1] + a[3]
 
 
-def usable_sign(sign) -> bool:
-    """A ground-truth SignTruth big and visible enough to be an example of its class."""
+def face_contrast(image: np.ndarray, box: Box) -> float:
+    """Grey-level spread (95th - 5th percentile, 0..255) of the middle half of box (x, y, w, h) in
+    uint8 (H, W, 3) BGR `image`, where a sign's symbol is (its corners are background), after a
+    blur that removes pixel noise but keeps a symbol; 0 for a box outside the image."""
+    x, y, w, h = box
+    roi = image[max(0, y + h // 4):max(0, y + h - h // 4), max(0, x + w // 4):max(0, x + w - w // 4)]
+    if roi.size == 0:
+        return 0.0
+    grey = cv2.GaussianBlur(cv2.cvtColor(roi, cv2.COLOR_BGR2GRAY).astype(np.float32), (0, 0), max(0.7, w / 20))
+    lo, hi = np.percentile(grey, (5, 95))
+    return float(hi - lo)
+
+
+def usable_sign(sign, image: np.ndarray) -> bool:
+    """A ground-truth SignTruth big, visible and legible enough in `image` (uint8 BGR, the frame
+    it was rendered in) to be an example of its class."""
     return min(sign.box[2], sign.box[3]) >= SIGN_MIN_PX and sign.occluded <= MAX_OCCLUDED \
-        and sign.truncated <= MAX_TRUNCATED
+        and sign.truncated <= MAX_TRUNCATED and face_contrast(image, sign.box) >= MIN_FACE_CONTRAST
 
 
 def unknown_candidates(sample: Sample, rng: np.random.Generator) -> list[Box]:
@@ -140,12 +158,12 @@ def proposal_labels(sample: Sample) -> list[tuple[str, Box]]:
     """The colour-mask proposals of a frame, each labelled by its overlap with the ground truth:
     IoU >= PROPOSAL_IOU with a usable sign takes that sign's class, no overlap with any sign is
     'unknown'; a proposal that touches a sign without matching it (a fragment, or a sign too
-    hidden to be an example) is left out rather than given a wrong label."""
+    hidden or washed out to be an example) is left out rather than given a wrong label."""
     out = []
     for prop in propose(sample.image):
         best = max(sample.truth.signs, key=lambda s: iou(prop.box, s.box), default=None)
         if best is not None and iou(prop.box, best.box) >= PROPOSAL_IOU:
-            if usable_sign(best):
+            if usable_sign(best, sample.image):
                 out.append((best.label, prop.box))
         elif not covers_sign(prop.box, [s.box for s in sample.truth.signs]):
             out.append(("unknown", prop.box))
@@ -160,7 +178,7 @@ def frame_crops(sample: Sample, rng: np.random.Generator, unknown_quota: int,
     labelled = proposal_labels(sample)
     out = [(label, crop_resize(sample.image, (x, y, x + w, y + h), size)) for label, (x, y, w, h) in labelled]
     out += [(s.label, crop_resize(sample.image, jitter_box(s.box, rng), size))
-            for s in sample.truth.signs if usable_sign(s)]
+            for s in sample.truth.signs if usable_sign(s, sample.image)]
     taken = [b for label, b in labelled if label == "unknown"]
     room = max(0, unknown_quota - len(taken))
     for box in [b for b in unknown_candidates(sample, rng) if all(iou(b, t) < 0.5 for t in taken)][:room]:

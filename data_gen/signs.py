@@ -123,6 +123,7 @@ def signs_config(n: int, seed: int, crop: int, unknown_fraction: float, frames: 
             "frames": int(frames), "sampler": asdict(sampler), "classes": list(SIGN_CLASSES),
             "targets": class_targets(n, unknown_fraction), "scene_unknown_share": SCENE_UNKNOWN_SHARE,
             "sign_min_px": sc.SIGN_MIN_PX, "max_occluded": sc.MAX_OCCLUDED, "max_truncated": sc.MAX_TRUNCATED,
+            "min_face_contrast": sc.MIN_FACE_CONTRAST,
             "pad_max": sc.PAD_MAX, "shift_max": sc.SHIFT_MAX, "sprite_px": list(sc.SPRITE_PX),
             "proposal_iou": sc.PROPOSAL_IOU, "yaw_max_deg": sc.YAW_MAX_DEG, "occlude_prob": sc.OCCLUDE_PROB}
 

@@ -62,14 +62,15 @@ class LaneScores:
 
 
 def eval_lanes(method: str, n: int = 500, seed: int = 1000, hard: bool = False, variant: str = "robust",
-               width: int = 320, height: int = 240, progress: bool = True) -> dict:
-    """Score one lane method on a seeded test set; frames are independent (state reset each)."""
+               width: int = 320, height: int = 240, progress: bool = True, overrides: dict | None = None) -> dict:
+    """Score one lane method on a seeded test set; frames are independent (state reset each).
+    `overrides` set method parameters (e.g. {"model": "lanes.onnx"} for segnet)."""
     sampler = FrameSampler(seed, test_set_config(hard, width, height))
     scores = LaneScores(method if variant == "robust" else f"{method}:{variant}")
     it = range(n)
     for i in tqdm(it, desc=f"eval {scores.method}", unit="frame", disable=not progress):
         smp = sampler.sample(i)
-        m = lanes.get(method, camera=smp.truth.nominal_camera, variant=variant)
+        m = lanes.get(method, camera=smp.truth.nominal_camera, variant=variant, **(overrides or {}))
         t0 = time.perf_counter()
         est = m(smp.image)
         scores.add(est, smp.truth, (time.perf_counter() - t0) * 1e3)

@@ -132,3 +132,20 @@ def test_shipped_model_meets_a_floor_on_a_fresh_seeded_set(tmp_path):
     scores = eval_signs(tmp_path / "test")
     assert scores["accuracy"] >= 0.95 and scores["non_sign_accepted"] <= 0.05
     assert all(r >= 0.9 for label, r in scores["recall"].items() if label != "unknown")
+
+
+def test_washed_out_signs_are_not_examples_of_their_class():
+    """A sign glare or exposure has turned into a flat patch (plus sensor noise) is left out of
+    the crop set instead of teaching the classifier that blank patches are signs."""
+    from data_gen.sign_crops import MIN_FACE_CONTRAST, face_contrast
+    from signlane.world.art import draw_sign
+    rng = np.random.default_rng(0)
+    frame = np.full((120, 160, 3), 90, np.uint8)
+    sprite = draw_sign("stop", 40)
+    alpha = sprite[:, :, 3:] / 255.0
+    frame[40:80, 60:100] = (sprite[:, :, :3] * alpha + frame[40:80, 60:100] * (1 - alpha)).astype(np.uint8)
+    box = (60, 40, 40, 40)
+    assert face_contrast(frame, box) >= MIN_FACE_CONTRAST
+    washed = np.clip(frame.astype(np.float32) * 10.0 + rng.normal(0, 8, frame.shape), 0, 255).astype(np.uint8)
+    assert face_contrast(washed, box) < MIN_FACE_CONTRAST
+    assert face_contrast(frame, (200, 200, 20, 20)) == 0.0  # a box off the image

@@ -18,11 +18,11 @@ def _add_scale_out(p) -> None:
 
 
 def add_train(sub) -> None:
-    p = sub.add_parser("train", help="train the sign classifier (needs the train extra)",
+    p = sub.add_parser("train", help="train the sign classifier or lane segmentation (needs the train extra)",
                        description="Train a model with Lightning on datasets from `signlane gen` (or autolabel). "
                                    "Writes checkpoints/ (best.ckpt, last.ckpt), logs/ (CSV), tensorboard/, "
                                    "config.json and report pictures to --out. Resume a killed run with --resume.")
-    kinds = p.add_subparsers(dest="kind", required=True, metavar="{signs}")
+    kinds = p.add_subparsers(dest="kind", required=True, metavar="{signs,lanes}")
     signs = kinds.add_parser("signs", help="the sign classifier on ImageFolder crops",
                              description="Train the sign classifier (a small CNN) on one or more ImageFolder crop "
                                          "sets; writes confusion.png and errors_<class>.png at the end.")
@@ -38,10 +38,36 @@ def add_train(sub) -> None:
     signs.add_argument("--workers", type=int, default=0, help="data-loader worker processes (default 0)")
     signs.add_argument("--resume", action="store_true", help="continue from --out/checkpoints/last.ckpt")
     _add_scale_out(signs)
+    _add_train_lanes(kinds)
     p.set_defaults(func=_run_train)
 
 
+def _add_train_lanes(kinds) -> None:
+    lanes = kinds.add_parser("lanes", help="the lane-marking segmentation net on lane datasets",
+                             description="Train the lane-marking segmentation net (for `--lanes segnet`) on one or "
+                                         "more lane datasets: `signlane gen lanes` output, `signlane autolabel lanes` "
+                                         "output, or folders of images/ + masks/<stem>.png, mixed freely. Writes "
+                                         "samples/epoch_<k>.png (truth green, prediction red) every epoch.")
+    lanes.add_argument("data", nargs="+", type=Path, help="lane dataset folders")
+    lanes.add_argument("--out", type=Path, required=True, help="run folder")
+    lanes.add_argument("--epochs", type=positive, default=15, help="maximum epochs (default 15)")
+    lanes.add_argument("--batch-size", type=positive, default=32, help="batch size (default 32)")
+    lanes.add_argument("--lr", type=float, default=4e-3, help="peak learning rate (default 4e-3)")
+    lanes.add_argument("--width", type=positive, default=16, help="channels of the stem (default 16)")
+    lanes.add_argument("--pos-weight", type=float, default=4.0,
+                       help="cross-entropy weight of the marking class (default 4)")
+    lanes.add_argument("--patience", type=positive, default=5, help="early-stopping patience in epochs (default 5)")
+    lanes.add_argument("--seed", type=int, default=0, help="training seed (default 0)")
+    lanes.add_argument("--workers", type=int, default=1, help="data-loader worker processes (default 1)")
+    lanes.add_argument("--threads", type=int, default=0,
+                       help="torch CPU threads (default 0 = torch's choice; 1 is fastest on a busy machine)")
+    lanes.add_argument("--resume", action="store_true", help="continue from --out/checkpoints/last.ckpt")
+    _add_scale_out(lanes)
+
+
 def _run_train(args) -> int:
+    if args.kind == "lanes":
+        return _run_train_lanes(args)
     try:
         from train.common import ScaleOut
         from train.signs import train_signs
@@ -59,20 +85,42 @@ def _run_train(args) -> int:
     return 0
 
 
+def _run_train_lanes(args) -> int:
+    try:
+        from train.common import ScaleOut
+        from train.lanes import train_lanes
+    except ImportError as e:
+        raise UserError(f"training needs the train extra (pip install 'signlane[train]'): {e}") from None
+    scale = ScaleOut(args.accelerator, args.devices, args.num_nodes, args.strategy)
+    try:
+        report = train_lanes(args.data, args.out, epochs=args.epochs, batch_size=args.batch_size, lr=args.lr,
+                             width=args.width, patience=args.patience, seed=args.seed, resume=args.resume,
+                             scale=scale, workers=args.workers, pos_weight=args.pos_weight, threads=args.threads)
+    except ValueError as e:
+        raise UserError(str(e)) from None
+    print(json.dumps(report, indent=1))
+    return 0
+
+
 def add_export(sub) -> None:
     p = sub.add_parser("export", help="export a checkpoint to ONNX with its contract (needs the train extra)",
                        description="Export a trained checkpoint to ONNX with the model contract in its metadata, "
                                    "check it with onnx.checker and compare onnxruntime with torch on fixed inputs "
                                    "(max abs diff <= 1e-4) or fail.")
-    kinds = p.add_subparsers(dest="kind", required=True, metavar="{signs}")
+    kinds = p.add_subparsers(dest="kind", required=True, metavar="{signs,lanes}")
     signs = kinds.add_parser("signs", help="the sign classifier")
     signs.add_argument("ckpt", type=Path, help="checkpoint (e.g. RUN/checkpoints/best.ckpt)")
     signs.add_argument("--out", type=Path, required=True, help="ONNX file to write")
     signs.add_argument("--int8", action="store_true", help="also write <out>_int8.onnx and report its accuracy drop")
+    lanes = kinds.add_parser("lanes", help="the lane-marking segmentation net (for --lanes segnet)")
+    lanes.add_argument("ckpt", type=Path, help="checkpoint (e.g. RUN/checkpoints/best.ckpt)")
+    lanes.add_argument("--out", type=Path, required=True, help="ONNX file to write")
     p.set_defaults(func=_run_export)
 
 
 def _run_export(args) -> int:
+    if args.kind == "lanes":
+        return _run_export_lanes(args)
     try:
         from export.signs import export_signs
     except ImportError as e:
@@ -80,6 +128,20 @@ def _run_export(args) -> int:
     try:
         report = export_signs(args.ckpt, args.out, int8=args.int8)
     except (ValueError, OSError) as e:
+        raise UserError(str(e)) from None
+    print(json.dumps(report, indent=1))
+    return 0
+
+
+def _run_export_lanes(args) -> int:
+    try:
+        from export.lanes import export_lanes
+        from export.onnx_export import ExportError
+    except ImportError as e:
+        raise UserError(f"export needs the train extra (pip install 'signlane[train]'): {e}") from None
+    try:
+        report = export_lanes(args.ckpt, args.out)
+    except (ValueError, OSError, ExportError) as e:
         raise UserError(str(e)) from None
     print(json.dumps(report, indent=1))
     return 0
@@ -123,7 +185,7 @@ def _run_classify(args) -> int:
 def add_autolabel(sub) -> None:
     p = sub.add_parser("autolabel", help="label your own images with the classical stages + current models",
                        description="Turn your own images and videos into a reviewable training set.")
-    kinds = p.add_subparsers(dest="kind", required=True, metavar="{signs}")
+    kinds = p.add_subparsers(dest="kind", required=True, metavar="{signs,lanes}")
     signs = kinds.add_parser("signs", help="sign crops foldered by the classifier (review, then train on them)",
                              description="Run the colour-mask proposals and the current sign classifier on "
                                          "your images/videos; write each proposal's crop to <out>/<label>/ "
@@ -134,10 +196,30 @@ def add_autolabel(sub) -> None:
     signs.add_argument("--model", type=Path, help="classifier ONNX (default: the shipped one, if present)")
     signs.add_argument("--every", type=positive, default=10, help="every Nth video frame (default 10)")
     signs.add_argument("--size", type=positive, default=48, help="crop size in pixels (default 48)")
+    _add_autolabel_lanes(kinds)
     p.set_defaults(func=_run_autolabel)
 
 
+def _add_autolabel_lanes(kinds) -> None:
+    lanes = kinds.add_parser("lanes", help="pseudo-labelled lane masks from a lane method's confident frames",
+                             description="Run a lane method on your images/videos and keep only the frames it is "
+                                         "confident about, as a lane dataset (images/, masks/, labels.jsonl, "
+                                         "manifest.json) that `signlane train lanes` can mix with synthetic sets; "
+                                         "sheet.png shows the kept frames, rejected.png some dropped ones.")
+    lanes.add_argument("paths", nargs="+", help="images, videos or folders")
+    lanes.add_argument("--out", type=Path, required=True, help="output folder (new or empty)")
+    lanes.add_argument("--method", default="sliding-window", help="lane method (default sliding-window)")
+    lanes.add_argument("--min-confidence", type=float, default=0.7,
+                       help="keep frames whose lane confidence reaches this (default 0.7)")
+    lanes.add_argument("--every", type=positive, default=10, help="every Nth video frame (default 10)")
+    lanes.add_argument("--config", type=Path, help="TOML config file (the camera section matters)")
+    lanes.add_argument("--set", dest="overrides", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                       help="override one setting, e.g. --set camera.pitch_deg=12 (repeatable)")
+
+
 def _run_autolabel(args) -> int:
+    if args.kind == "lanes":
+        return _run_autolabel_lanes(args)
     from signlane.autolabel import autolabel_signs
     from signlane.onnx_model import ModelError
     try:
@@ -145,4 +227,18 @@ def _run_autolabel(args) -> int:
     except ModelError as e:
         raise UserError(str(e)) from None
     print(json.dumps({"out": str(args.out), "counts": report["counts"], "model": report["model"]}))
+    return 1 if report["failed"] else 0
+
+
+def _run_autolabel_lanes(args) -> int:
+    from data_gen.autolabel_lanes import autolabel_lanes
+    from data_gen.common import DatasetError
+    from signlane.config import Config
+    from signlane.onnx_model import ModelError
+    try:
+        cfg = Config.load(args.config, args.overrides)
+        report = autolabel_lanes(args.paths, args.out, args.method, cfg.camera, args.min_confidence, args.every)
+    except (ValueError, ModelError, DatasetError) as e:
+        raise UserError(str(e)) from None
+    print(json.dumps({"out": str(args.out), "counts": report["counts"], "method": args.method}))
     return 1 if report["failed"] else 0

@@ -39,7 +39,8 @@ def add_infer(sub) -> None:
     p.add_argument("--out", type=Path, help="folder for annotated images/videos (and masks)")
     p.add_argument("--json", dest="json_path", metavar="FILE", help="write per-frame JSON lines here ('-' = stdout)")
     p.add_argument("--lanes", metavar="METHOD",
-                   help="lane method: canny-scan, sliding-window, color-hough, vector-spline (default from config)")
+                   help="lane method: canny-scan, sliding-window, color-hough, vector-spline, segnet (learned; "
+                        "--save-masks then writes its marking mask) (default from config)")
     p.add_argument("--save-masks", action="store_true", help="write <stem>_lane.png (0/255) beside each annotated image")
     p.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bars")
     _add_config_args(p)
@@ -63,7 +64,7 @@ def _run_infer(args) -> int:
 def add_eval(sub) -> None:
     p = sub.add_parser("eval", help="score lane methods or sign proposals on a seeded synthetic test set",
                        description="Render a seeded synthetic test set and print a score table.")
-    kinds = p.add_subparsers(dest="kind", required=True, metavar="{lanes,proposals,signs}")
+    kinds = p.add_subparsers(dest="kind", required=True, metavar="{lanes,proposals,signs,masks}")
     common = argparse.ArgumentParser(add_help=False)
     common.add_argument("--n", type=positive, default=500, help="frames (default 500)")
     common.add_argument("--seed", type=int, default=1000, help="test-set seed (default 1000)")
@@ -77,6 +78,14 @@ def add_eval(sub) -> None:
                                          "of lane width), heading error, curvature sign agreement, ms/frame.")
     lanes.add_argument("--method", action="append", help="lane method (repeatable; default: all available)")
     lanes.add_argument("--size", type=size_arg, default=(320, 240), help="frame size WxH (default 320x240)")
+    lanes.add_argument("--lanes-model", type=Path, help="segnet's ONNX model (default: the shipped one)")
+    masks = kinds.add_parser("masks", help="lane-marking F1 of the segmentation model on a lane dataset",
+                             description="Precision, recall and F1 of segnet's lane-marking mask against a lane "
+                                         "dataset's masks (make a fresh one with `signlane gen lanes --seed S`), "
+                                         "with a pixel tolerance, at each frame's size.")
+    masks.add_argument("data", type=Path, help="lane dataset folder (labels.jsonl, images/, masks/)")
+    masks.add_argument("--model", type=Path, help="ONNX model (default: the shipped signlane/models/lanes.onnx)")
+    masks.add_argument("--tol", type=int, default=2, help="tolerance in pixels (default 2)")
     prop = kinds.add_parser("proposals", parents=[common], help="recall of signs >= 20 px and false proposals/frame",
                             description="Recall of ground-truth signs (box IoU >= 0.5, signs >= --min-size px) and "
                                         "false proposals per frame.")
@@ -104,14 +113,25 @@ def _run_eval(args) -> int:
         except (ModelError, ValueError, OSError) as e:
             raise UserError(str(e)) from None
         return 0
+    if args.kind == "masks":
+        from signlane.eval_masks import eval_masks
+        from signlane.onnx_model import ModelError
+        try:
+            print(json.dumps(eval_masks(args.data, args.model, args.tol), indent=1))
+        except (ModelError, ValueError, OSError) as e:
+            raise UserError(str(e)) from None
+        return 0
     variants = ["robust", "published"] if args.variant == "both" else [args.variant]
     if args.kind == "lanes":
         from signlane import lanes
         from signlane.evaluate import eval_lanes, format_table, plot_lanes, write_csv
+        from signlane.onnx_model import ModelError
         methods = args.method or lanes.available()
+        model = {"model": str(args.lanes_model)} if args.lanes_model else {}
         try:
-            rows = [eval_lanes(m, args.n, args.seed, args.hard, v, *args.size) for m in methods for v in variants]
-        except ValueError as e:
+            rows = [eval_lanes(m, args.n, args.seed, args.hard, v, *args.size,
+                               overrides=model if m == "segnet" else None) for m in methods for v in variants]
+        except (ValueError, ModelError) as e:
             raise UserError(str(e)) from None
         print(format_table(rows))
         if args.csv:

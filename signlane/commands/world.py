@@ -26,8 +26,13 @@ def add_gen(sub) -> None:
                                          "labels.jsonl, manifest.json).")
     lanes.add_argument("--size", type=size_arg, default=(320, 240), help="frame size WxH (default 320x240)")
     lanes.add_argument("--workers", type=positive, default=1, help="worker processes (default 1)")
-    lanes.add_argument("--effects", choices=["clean", "normal", "hard", "mixed"], default="mixed",
-                       help="photometric/pose randomisation (default mixed: normal and hard)")
+    lanes.add_argument("--effects", choices=["clean", "normal", "hard", "heavy", "mixed", "wild"], default="mixed",
+                       help="photometric/pose randomisation (default mixed: normal and hard; wild: normal, "
+                            "hard and heavy = night, rain, stronger light and pose changes)")
+    lanes.add_argument("--preset", choices=["default", "heavy"], default="default",
+                       help="heavy: wild effects, strong wear and shadows, wider camera spread, a third of the "
+                            "frames 16:9 (for lane-segmentation training; overrides --effects)")
+    lanes.add_argument("--drivable", action="store_true", help="also write drivable/<id>.png (road surface, 0/255)")
     lanes.add_argument("--no-randomise", dest="randomise", action="store_false",
                        help="default road style, looks and camera instead of randomised ones")
     signs = kinds.add_parser("signs", parents=[common], help="labelled sign crops (ImageFolder)",
@@ -56,7 +61,8 @@ def _gen(args) -> int:
         from data_gen.lanes import generate_lanes
         m = generate_lanes(args.out, args.n, args.seed, width=args.size[0], height=args.size[1],
                            workers=args.workers, resume=args.resume, preview=args.preview,
-                           effects=args.effects, randomise=args.randomise)
+                           effects=args.effects, randomise=args.randomise, drivable=args.drivable,
+                           preset=args.preset)
     elif args.kind == "signs":
         from data_gen.signs import generate_signs
         m = generate_signs(args.out, args.n, args.seed, crop=args.crop, workers=args.workers,
@@ -71,36 +77,41 @@ def _gen(args) -> int:
 
 # --- demo --------------------------------------------------------------------------------------
 def add_demo(sub) -> None:
-    p = sub.add_parser("demo", help="render a short drive to an MP4, a contact sheet and a track map",
-                       description="Render a short drive on the bundled loop_demo map (or a seeded procedural "
-                                   "track with --track random): drive.mp4 (camera view and ground truth side by "
-                                   "side), contact_sheet.png and track.png.")
+    p = sub.add_parser("demo", help="a closed-loop drive in the local simulator: video, path and score",
+                       description="Drive the car closed-loop in the local simulator on a bundled map with signs "
+                                   "(default town_demo), in lockstep, with signlane's driver and the shipped "
+                                   "models: writes drive.mp4 (what the driver saw and did), path.png (the driven "
+                                   "path from above), report.json, and prints the score table.")
     p.add_argument("--out", type=Path, default=Path("out/demo"), help="output folder (default out/demo)")
-    p.add_argument("--track", default="loop_demo",
-                   help="'loop_demo' (bundled, default), 'random' (procedural, see --seed) or a VIA map JSON file")
-    p.add_argument("--seed", type=int, default=0, help="seed of the route's choices and a random track (default 0)")
-    p.add_argument("--seconds", type=float, default=20.0, help="length of the drive (default 20)")
+    p.add_argument("--track", default="town_demo",
+                   help="a bundled map (town_demo, loop_demo), 'random' (procedural, see --seed) or a VIA map JSON file")
+    p.add_argument("--seed", type=int, default=0, help="seed of a random track (default 0)")
+    p.add_argument("--laps", type=positive, default=1, help="laps to drive (default 1)")
     p.add_argument("--size", type=size_arg, default=(640, 480), help="frame size WxH (default 640x480)")
+    p.add_argument("--lanes", help="lane method (default from the config)")
     p.set_defaults(func=_run_demo)
 
 
 def _run_demo(args) -> int:
-    from signlane.demo import bundled_map, run_demo
+    from signlane.config import Config
+    from signlane.demo import BUNDLED_MAPS, bundled_map, run_demo
+    from signlane.sim.score import format_report
     from signlane.world.procedural import generate_map
     from signlane.world.track import MapError, Track
     try:
-        if args.track == "loop_demo":
-            track = bundled_map()
+        if args.track in BUNDLED_MAPS:
+            track = bundled_map(args.track)
         elif args.track == "random":
             track = Track.from_via(generate_map(args.seed))
         else:
             track = Track.load(args.track)
-    except MapError as e:
+        config = Config.load(None, [f"lanes.method={args.lanes}"] if args.lanes else [])
+    except (MapError, ValueError) as e:
         raise UserError(str(e)) from None
-    res = run_demo(args.out, seed=args.seed, seconds=args.seconds, width=args.size[0], height=args.size[1],
-                   track=track)
-    for name, path in res["files"].items():
-        print(f"{name:>14}: {path}")
+    rep = run_demo(args.out, track=track, laps=args.laps, width=args.size[0], height=args.size[1], config=config)
+    print(format_report(rep))
+    for name, path in rep["files"].items():
+        print(f"{name:>8}: {path}")
     return 0
 
 

@@ -139,11 +139,26 @@ def sliding_window(image_bgr: np.ndarray, camera: Camera | None, params: Sliding
     if min(h, w) < 16:  # too small to hold a lane marking
         return LaneEstimate(NAME, False, debug_mask=np.zeros((h, w), np.uint8)), _lost(state)
     cam = camera_for(image_bgr, camera)
-    lb, rb, conf, debug, tracked = _detect(image_bgr[:, :, :3], cam, params, state, params.depth_m)
+
+    def binary_of(bev: BirdsEye, valid: np.ndarray) -> np.ndarray:
+        return _binary(bev.warp(image_bgr[:, :, :3]), valid, bev, params)
+    return lanes_from_binary(NAME, binary_of, cam, params, state)
+
+
+def lanes_from_binary(name: str, binary_of, cam: Camera, params: SlidingWindowParams,
+                      state: SlidingWindowState | None, debug_mask: np.ndarray | None = None
+                      ) -> tuple[LaneEstimate, SlidingWindowState]:
+    """The back-end after the binary, shared with the learned `segnet`: `binary_of(bev, valid)`
+    gives the uint8 0/255 lane-paint mask of a bird's-eye view (valid = where it sees ground);
+    bases, windows, ego pair, checks and fits follow. `debug_mask` replaces the default one
+    (the kept lines' pixels)."""
+    state = state or SlidingWindowState(lane_width_m=params.lane_width_m)
+    want = debug_mask is None
+    lb, rb, conf, debug, tracked = _detect(binary_of, cam, params, state, params.depth_m, want)
     if lb is None and rb is None and params.retry_depth_m > params.depth_m:
         # no line near the car: look further ahead (less accurate there, better than nothing)
-        lb, rb, conf, debug, tracked = _detect(image_bgr[:, :, :3], cam, params, state, params.retry_depth_m)
-    est = estimate_from_fits(NAME, cam, lb, rb, state.lane_width_m, conf, debug)
+        lb, rb, conf, debug, tracked = _detect(binary_of, cam, params, state, params.retry_depth_m, want)
+    est = estimate_from_fits(name, cam, lb, rb, state.lane_width_m, conf, debug if want else debug_mask)
     if not est.found:
         return est, _lost(state)
     width = state.lane_width_m
@@ -159,14 +174,14 @@ def _lost(state: SlidingWindowState) -> SlidingWindowState:
     return SlidingWindowState(None, None, state.lane_width_m, False, state.misses + 1)
 
 
-def _detect(image_bgr: np.ndarray, cam: Camera, p: SlidingWindowParams, state: SlidingWindowState,
-            depth_m: float):
-    """(left, right Boundary | None, confidence, debug mask uint8 (H, W), tracked) through a
-    bird's-eye view depth_m deep."""
+def _detect(binary_of, cam: Camera, p: SlidingWindowParams, state: SlidingWindowState, depth_m: float,
+            want_debug: bool = True):
+    """(left, right Boundary | None, confidence, debug mask uint8 (H, W) | None, tracked) through
+    a bird's-eye view depth_m deep whose binary `binary_of(bev, valid)` makes."""
     near = SOURCE_NEAR_ROW if p.region == "source" else 1.0
     bev = ego_birdseye(cam, p.x_half_m, depth_m, p.px_per_m, near)
     valid = visible_mask(bev)
-    binary = _binary(bev.warp(image_bgr), valid, bev, p)
+    binary = binary_of(bev, valid)
     vs, us = np.nonzero(binary)
     px = _Pixels(us, vs, bev.bev_to_ground(np.column_stack([us, vs])))
     held = _search_around(px, bev, state, p) if state.left is not None or state.right is not None else (None, None)
@@ -178,6 +193,8 @@ def _detect(image_bgr: np.ndarray, cam: Camera, p: SlidingWindowParams, state: S
         if tracked:  # keep the side tracking held; the search fills the other
             left, right, kind = held[0] or left, held[1] or right, "pair"
     lb, rb, conf = _boundaries(left, right, kind, p)
+    if not want_debug:
+        return lb, rb, conf, None, tracked
     mask = np.zeros(binary.shape, np.uint8)
     for line, b in ((left, lb), (right, rb)):
         if line is not None and b is not None:

@@ -35,7 +35,7 @@ def random_camera(rng: np.random.Generator, width: int, height: int, wide: float
 class SamplerConfig:
     width: int = 320
     height: int = 240
-    effects: str = "normal"  # clean | normal | hard | mixed (normal and hard, half each)
+    effects: str = "normal"  # clean | normal | hard | heavy | mixed (normal, hard: half each) | wild (a third each of normal, hard, heavy)
     randomise: bool = True  # road style, scene looks, camera spread, sign appearance
     frames_per_track: int = 25
     lateral_m: float = 0.6  # std of the car's lateral offset from the lane centre
@@ -43,6 +43,13 @@ class SamplerConfig:
     map_size: str = "medium"
     looks_strength: float = 1.0  # worn/faded paint and shadows; the hard test set uses 2
     focus: str = "none"  # none | signs: place the car 4-45 m before a sign facing it (sign datasets)
+    camera_spread: float = 1.0  # scales random_camera's spread of FOV, height and pitch
+    wide_prob: float = 0.0  # chance a frame is 16:9 (same width, fewer rows) instead of width x height
+
+
+# training sets that must generalise past the renderer: wild effects, strong wear and shadows,
+# cameras spread half as far again, a third of the frames wide
+HEAVY = dict(effects="wild", looks_strength=2.5, camera_spread=1.5, wide_prob=0.3)
 
 
 class FrameSampler:
@@ -74,13 +81,17 @@ class FrameSampler:
         name = self.config.effects
         if name == "mixed":
             name = "hard" if rng.random() < 0.5 else "normal"
+        elif name == "wild":
+            name = ("normal", "hard", "heavy")[int(rng.integers(3))]
         return Effects.named(name)
 
     def sample(self, index: int) -> Sample:
         cfg = self.config
         self._prepare(index // cfg.frames_per_track)
         rng = np.random.default_rng([self.seed, index, 2])
-        camera = random_camera(rng, cfg.width, cfg.height, 1.0 if cfg.randomise else 0.0)
+        camera = random_camera(rng, cfg.width, cfg.height, cfg.camera_spread if cfg.randomise else 0.0)
+        if cfg.wide_prob and rng.random() < cfg.wide_prob:  # drawn only when enabled: older sets keep their pixels
+            camera = camera.with_size(cfg.width, max(16, round(cfg.width * 9 / 16)))
         route = self._route
         s = float(rng.uniform(0, route.length - 80.0))
         if len(self._sign_s):

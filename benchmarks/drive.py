@@ -1,0 +1,153 @@
+"""Drive-server speed: latency per frame (median, p99) at 640x480 for each lane method, through a
+real WebSocket round trip, and the frame rates the server sustains.
+
+The server runs in a child process (as `signlane drive` would, so client and server do not share
+a GIL); the client sends pre-rendered VIA messages (640x480 JPEG, base64, string fields) of a
+consecutive drive, so lane tracking behaves as on the road.
+  lockstep: send a frame, wait for its answer, repeat (what `signlane sim --lockstep` does);
+            latency is that round trip, fps = frames / time.
+  flood:    send every frame back to back without waiting (what VIA does when the server is
+            slower than the simulator); answers/s and the share of frames actually driven (the
+            rest were answered at once with the latest command).
+The baseline row is a server whose driver does nothing: JSON + base64 + JPEG decode and the
+WebSocket round trip only, measured in the same run; 'x base' divides a row's median by it.
+
+    python benchmarks/drive.py [--frames 40] [--repeats 3] [--method NAME ...]
+
+Lane-method rows run with signs off; the last row is the default config (signs on).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import multiprocessing as mp
+import statistics
+import time
+from dataclasses import replace
+
+import numpy as np
+from websockets.sync.client import connect
+
+from signlane import lanes
+from signlane.config import Config
+from signlane.sim.protocol import encode_jpeg, encode_telemetry
+from signlane.types import Command, LaneEstimate, Perception
+from signlane.world.sampling import DriveSampler, SamplerConfig
+
+BASELINE = "baseline (decode only)"
+
+
+class NullDriver:
+    """Decoding happens in the server before the driver: this driver only answers."""
+
+    def step(self, telemetry):
+        return Perception(None, LaneEstimate("none", False)), Command(0.0, 0.2, "cruise")
+
+    def close(self):
+        pass
+
+
+def _child(method: str | None, signs: bool, conn) -> None:
+    """Server process: serve until the parent says stop, then send back the server's totals."""
+    import logging
+    logging.basicConfig(level=logging.WARNING)
+    from signlane.config import Config
+    from signlane.sim.server import DriveServer, ServerOptions
+    cfg = Config()
+    cfg = replace(cfg, signs=replace(cfg.signs, enabled=signs))
+    if method:
+        cfg = replace(cfg, lanes=replace(cfg.lanes, method=method))
+    try:
+        srv = DriveServer(cfg, ServerOptions(port=0, log_every_s=3600),
+                          driver_factory=None if method else NullDriver).start()
+    except Exception as e:
+        conn.send(("error", f"{type(e).__name__}: {e}"))
+        return
+    conn.send(("port", srv.port))
+    conn.recv()
+    srv.close()
+    conn.send(("totals", srv.totals))
+
+
+def lockstep(url: str, messages: list[str]) -> tuple[list[float], float]:
+    """Round-trip ms per frame and frames/s, one frame in flight."""
+    rtt = []
+    with connect(url, max_size=None) as ws:
+        t_start = time.perf_counter()
+        for m in messages:
+            t0 = time.perf_counter()
+            ws.send(m)
+            json.loads(ws.recv())
+            rtt.append((time.perf_counter() - t0) * 1e3)
+        fps = len(messages) / (time.perf_counter() - t_start)
+    return rtt, fps
+
+
+def flood(url: str, messages: list[str]) -> float:
+    """Answers/s when every frame is sent without waiting for answers."""
+    with connect(url, max_size=None) as ws:
+        t0 = time.perf_counter()
+        for m in messages:
+            ws.send(m)
+        for _ in messages:
+            ws.recv()
+        return len(messages) / (time.perf_counter() - t0)
+
+
+def measure(name: str, method: str | None, signs: bool, messages: list[str], repeats: int) -> dict:
+    ctx = mp.get_context("spawn")
+    parent, child = ctx.Pipe()
+    proc = ctx.Process(target=_child, args=(method, signs, child), daemon=True)
+    proc.start()
+    try:
+        kind, value = parent.recv()
+        if kind == "error":
+            return {"name": name, "error": value}
+        url = f"ws://127.0.0.1:{value}"
+        lockstep(url, messages[:5])  # warm up: first-frame setup, model load, caches
+        runs = [lockstep(url, messages) for _ in range(repeats)]
+        answers_s = statistics.median(flood(url, messages) for _ in range(repeats))
+        parent.send("stop")
+        totals = parent.recv()[1]
+    finally:
+        proc.join(30)
+    flood_frames = repeats * len(messages)
+    if totals["bad"]:
+        return {"name": name, "error": f"the driver failed on {totals['bad']} frames (see the log above)"}
+    return {"name": name, "median": statistics.median(float(np.median(r)) for r, _ in runs),
+            "p99": statistics.median(float(np.percentile(r, 99)) for r, _ in runs),
+            "fps": statistics.median(f for _, f in runs), "flood": answers_s,
+            # lockstep never skips, so every skip happened during the floods
+            "driven": 100.0 * (1 - totals["skipped"] / flood_frames)}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--frames", type=int, default=40, help="frames per repeat (default 40)")
+    ap.add_argument("--repeats", type=int, default=3, help="repeats; the table shows medians (default 3)")
+    ap.add_argument("--method", action="append", help="lane method(s) (default: all available)")
+    ap.add_argument("--seed", type=int, default=4)
+    args = ap.parse_args()
+    sampler = DriveSampler(args.seed, SamplerConfig(640, 480, effects="normal"))
+    messages = [encode_telemetry(0.0, 0.4, 8.0, encode_jpeg(sampler.sample(i).image), time=i / 20)
+                for i in range(args.frames)]
+    kb = np.mean([len(m) for m in messages]) / 1024
+    rows = [measure(BASELINE, None, False, messages, args.repeats)]
+    for m in args.method or lanes.available():
+        rows.append(measure(m, m, False, messages, args.repeats))
+    default = Config().lanes.method  # and the default driver as `signlane drive` runs it: signs on
+    rows.append(measure(f"{default} + signs", default, True, messages, args.repeats))
+    print(f"640x480 frames, {kb:.0f} KB per message, {args.frames} frames x {args.repeats} repeats (medians)")
+    print(f"{'server':<24} {'median ms':>9} {'p99 ms':>7} {'x base':>6} {'lockstep fps':>12} "
+          f"{'flood ans/s':>11} {'driven %':>8}")
+    base = rows[0].get("median")
+    for r in rows:
+        if "error" in r:
+            print(f"{r['name']:<24} unavailable: {r['error'][:90]}")
+            continue
+        print(f"{r['name']:<24} {r['median']:9.1f} {r['p99']:7.1f} {r['median'] / base:6.1f} {r['fps']:12.1f} "
+              f"{r['flood']:11.0f} {r['driven']:8.0f}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,116 @@
+"""`signlane autolabel lanes`: a lane method on a user's own images and videos; its confident
+frames become a pseudo-labelled lane dataset in the synthetic sets' layout, so training can mix
+them (classical filtering produces labels; the network then learns to generalise them).
+
+The mask of a kept frame is the method's debug mask: for sliding-window the lane-paint pixels of
+the two ego boundaries it fitted (other lanes' paint stays unlabelled, so keep such sets a
+minority beside synthetic ones); for segnet its whole marking mask (self-training). Frames are
+kept only when the method found the lane with `min_confidence` and painted pixels to learn from.
+
+Layout of `out/`: images/<id>.jpg, masks/<id>.png (0/255), labels.jsonl (the lane contract;
+"pseudo": {"method", "confidence"} added), sheet.png (kept frames), rejected.png (a sample of the
+dropped ones), manifest.json (written last).
+"""
+from __future__ import annotations
+
+import logging
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+from tqdm import tqdm
+
+from data_gen.common import DatasetError, atomic_imwrite, atomic_write_text, write_manifest
+from data_gen.lanes import JPEG_QUALITY, teacher_steering
+from data_gen.preview import contact_sheet, lane_overlay
+from signlane import lanes
+from signlane.config import CameraConfig
+from signlane.media import MediaError, expand, iter_video, read_image
+from signlane.types import LaneEstimate
+
+log = logging.getLogger(__name__)
+SHEET_MAX = 48
+MIN_MASK_PX = 30  # a kept frame must have at least this much paint labelled
+
+
+def _frames(src, every: int):
+    if src.kind == "image":
+        yield 0, read_image(src.path)
+        return
+    for i, frame in enumerate(iter_video(src.path)):
+        if i % every == 0:
+            yield i, frame
+
+
+def lane_record(sid: str, est: LaneEstimate, width: int, height: int, method: str) -> dict:
+    """The labels.jsonl object of a pseudo-labelled frame (the lane dataset contract)."""
+    def pl(a):
+        return [] if a is None else [[round(float(x), 2), round(float(y), 2)] for x, y in a]
+    center = []
+    if est.left is not None and est.right is not None and len(est.left) and len(est.right):
+        n = min(len(est.left), len(est.right))
+        center = pl(0.5 * (est.left[:n] + est.right[:n]))
+    return {"id": sid, "image": f"images/{sid}.jpg", "mask": f"masks/{sid}.png", "width": width, "height": height,
+            "lane": {"left": pl(est.left), "right": pl(est.right), "center": center,
+                     "offset": round(float(est.offset), 5), "heading": round(float(est.heading), 5),
+                     "curvature": round(float(est.curvature), 6)},
+            "signs": [], "steering": teacher_steering(est.offset, est.heading, est.curvature),
+            "pseudo": {"method": method, "confidence": round(float(est.confidence), 3)}}
+
+
+def autolabel_lanes(paths: list[str], out: str | Path, method: str = "sliding-window",
+                    camera: CameraConfig = CameraConfig(), min_confidence: float = 0.7, every: int = 10,
+                    progress: bool = True) -> dict:
+    """Write the confident frames of `paths` as a lane dataset; returns counts and failed inputs."""
+    import json
+    out = Path(out)
+    if out.exists() and any(out.iterdir()):
+        raise DatasetError(f"{out} is not empty; choose a new or empty folder")
+    lanes.params_for(method)  # an unknown method fails before any work
+    sources, failed = expand(paths)
+    for e in failed:
+        print(f"signlane autolabel: {e}", file=sys.stderr)
+    records, kept_tiles, rejected_tiles, seen = [], [], [], 0
+    for src in tqdm(sources, desc="autolabel lanes", unit="input", disable=not progress or len(sources) < 2):
+        try:
+            for index, frame in _frames(src, every):
+                seen += 1
+                h, w = frame.shape[:2]
+                est = lanes.get(method, camera=camera.camera(w, h))(frame)  # fresh state: frames stand alone
+                mask = est.debug_mask if est.debug_mask is not None else np.zeros((h, w), np.uint8)
+                mask = (mask > 0).astype(np.uint8) * 255
+                if not (est.found and est.confidence >= min_confidence and np.count_nonzero(mask) >= MIN_MASK_PX):
+                    if len(rejected_tiles) < SHEET_MAX:
+                        rejected_tiles.append(lane_overlay(frame, mask, {"left": _pts(est.left), "right": _pts(est.right)}))
+                    continue
+                sid = f"{src.path.stem}_{index:06d}"
+                atomic_imwrite(out / "images" / f"{sid}.jpg", frame, [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
+                atomic_imwrite(out / "masks" / f"{sid}.png", mask)
+                rec = lane_record(sid, est, w, h, method)
+                records.append(rec)
+                if len(kept_tiles) < SHEET_MAX:
+                    kept_tiles.append(lane_overlay(frame, mask, rec["lane"]))
+        except MediaError as e:
+            print(f"signlane autolabel: {e}", file=sys.stderr)
+            failed.append(str(e))
+    out.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(out / "labels.jsonl", "".join(json.dumps(r) + "\n" for r in records))
+    for name, tiles in (("sheet.png", kept_tiles), ("rejected.png", rejected_tiles)):
+        if tiles:
+            atomic_imwrite(out / name, contact_sheet(tiles, [t for t in _ids(records, name, len(tiles))], 6, (240, 180)))
+    counts = {"seen": seen, "kept": len(records)}
+    config = {"method": method, "min_confidence": min_confidence, "every": every, "camera": camera.__dict__,
+              "inputs": [str(p) for p in paths]}
+    write_manifest(out, "autolabel_lanes", 0, counts, config)
+    log.info("%s: kept %d of %d frames", out, len(records), seen)
+    return {"counts": counts, "failed": failed}
+
+
+def _pts(a) -> list:
+    return [] if a is None else a.tolist()
+
+
+def _ids(records: list[dict], sheet: str, n: int) -> list[str]:
+    """Tile captions: the ids of kept frames (rejected ones are not written, so no captions)."""
+    return [r["id"] for r in records[:n]] if sheet == "sheet.png" else [""] * n

@@ -1,0 +1,74 @@
+"""`signlane drive`: the VIA-protocol drive server."""
+from __future__ import annotations
+
+import argparse
+from dataclasses import replace
+from pathlib import Path
+
+from signlane.commands.common import UserError, positive
+from signlane.commands.perception import _add_config_args, _config
+
+
+def add_drive(sub) -> None:
+    p = sub.add_parser(
+        "drive", help="drive the VIA simulator (or `signlane sim`): a WebSocket server on 127.0.0.1:4567",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Serve the VIA simulator's protocol: the simulator connects, sends one JSON frame per\n"
+                    "rendered image ({\"steering_angle\", \"throttle\", \"speed\", \"image\": base64 JPEG}) and\n"
+                    "gets {\"throttle\", \"steering\"} back for every frame. Each connection has its own driver\n"
+                    "(lane method + signs + controller). Frames that arrive while the driver is still busy\n"
+                    "are answered at once with the latest command, so the car never acts on a backlog.\n"
+                    "A bad frame gets one log line and a safe answer (coast, wheels straight); the server\n"
+                    "keeps serving. Rates and latencies are logged every --log-every seconds.\n\n"
+                    "examples:\n"
+                    "  signlane drive                                # then start the simulator\n"
+                    "  signlane drive --lanes canny-scan --no-signs\n"
+                    "  signlane drive --record runs/drive1 --show-every 20 --show-dir runs/drive1_frames")
+    p.add_argument("--host", default="127.0.0.1",
+                   help="address to listen on (default 127.0.0.1; 0.0.0.0 exposes the car to the network)")
+    p.add_argument("--port", type=int, default=4567, help="port (default 4567, the simulator's; 0 = any free)")
+    p.add_argument("--lanes", metavar="METHOD",
+                   help="lane method: canny-scan, sliding-window, color-hough, vector-spline, segnet "
+                        "(default from config)")
+    p.add_argument("--signs", action=argparse.BooleanOptionalAction, default=None,
+                   help="traffic-sign detection (default from config: on)")
+    p.add_argument("--sync-signs", action="store_true",
+                   help="classify signs in step with every frame (deterministic, for lockstep simulators); "
+                        "default: beside the lane path, so signs never delay steering")
+    p.add_argument("--record", type=Path, metavar="DIR",
+                   help="record a driving dataset: images/<id>.jpg, drive.jsonl (telemetry, command, lane, "
+                        "signs per frame), manifest.json on exit. DIR must be new or empty")
+    p.add_argument("--show-every", type=positive, metavar="N",
+                   help="write every N-th driven frame annotated (lane, signs, steering/throttle/state)")
+    p.add_argument("--show-dir", type=Path, default=Path("drive_frames"), metavar="DIR",
+                   help="folder for --show-every frames (default drive_frames/)")
+    p.add_argument("--max-bytes", type=positive, default=8 * 1024 * 1024, metavar="N",
+                   help="largest frame message accepted, bytes (default 8 MB); larger ones get the safe answer, "
+                        "and ones over twice this close the connection")
+    p.add_argument("--log-every", type=float, default=10.0, metavar="SEC",
+                   help="seconds between rate/latency log lines (default 10)")
+    _add_config_args(p)
+    p.set_defaults(func=_run_drive)
+
+
+def _run_drive(args) -> int:
+    from signlane.onnx_model import ModelError
+    from signlane.sim.drive_record import RecordError
+    from signlane.sim.server import ServerOptions, run_server
+    cfg = _config(args)
+    if args.signs is not None:
+        cfg = replace(cfg, signs=replace(cfg.signs, enabled=args.signs))
+    if not 0 <= args.port <= 65535:
+        raise UserError(f"--port must be 0..65535, not {args.port}")
+    if args.log_every <= 0:
+        raise UserError(f"--log-every must be > 0, not {args.log_every}")
+    options = ServerOptions(host=args.host, port=args.port, max_bytes=args.max_bytes, record=args.record,
+                            show_every=args.show_every or 0, show_dir=args.show_dir, sync_signs=args.sync_signs,
+                            log_every_s=args.log_every)
+    try:
+        run_server(cfg, options)
+    except (RecordError, ModelError, ValueError) as e:
+        raise UserError(str(e)) from None
+    except OSError as e:  # the port is taken, the address is not ours, ...
+        raise UserError(f"cannot serve on {args.host}:{args.port}: {e.strerror or e}") from None
+    return 0

@@ -1,0 +1,62 @@
+"""Lane-marking mask scores: precision, recall and F1 with a pixel tolerance, at the frame's size.
+
+A predicted pixel is correct when a true marking pixel lies within `tol` pixels of it (a disk),
+and a true pixel is found when a predicted one lies within `tol` of it (the usual boundary-style
+tolerance: a line one or two pixels off is still the line). Counts are summed over frames.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+from tqdm import tqdm
+
+
+@dataclass
+class MaskCounts:
+    tp_pred: int = 0  # predicted pixels near a true one
+    pred: int = 0
+    tp_true: int = 0  # true pixels near a predicted one
+    true: int = 0
+    frames: int = 0
+
+    def add(self, pred: np.ndarray, true: np.ndarray, tol: int = 2) -> None:
+        """pred, true: uint8 (H, W), nonzero = marking."""
+        k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * tol + 1, 2 * tol + 1))
+        p, t = pred > 0, true > 0
+        self.tp_pred += int(np.count_nonzero(p & (cv2.dilate(t.astype(np.uint8), k) > 0)))
+        self.tp_true += int(np.count_nonzero(t & (cv2.dilate(p.astype(np.uint8), k) > 0)))
+        self.pred += int(np.count_nonzero(p))
+        self.true += int(np.count_nonzero(t))
+        self.frames += 1
+
+    def summary(self) -> dict:
+        precision = self.tp_pred / max(self.pred, 1)
+        recall = self.tp_true / max(self.true, 1)
+        f1 = 2 * precision * recall / max(precision + recall, 1e-12)
+        return {"frames": self.frames, "precision": precision, "recall": recall, "f1": f1}
+
+
+def eval_masks(data: str | Path, model: str | Path | None = None, tol: int = 2, threads: int = 2,
+               progress: bool = True) -> dict:
+    """The segmentation model's marking F1 within `tol` px on a lane dataset folder (labels.jsonl
+    with images/ and masks/, e.g. a fresh `signlane gen lanes --seed S`)."""
+    from signlane.lanes.seg_model import DEFAULT_MODEL, LaneSegModel, to_frame_mask
+    seg = LaneSegModel(model or DEFAULT_MODEL, threads)
+    root = Path(data)
+    labels = root / "labels.jsonl"
+    if not labels.is_file():
+        raise ValueError(f"{root}: no labels.jsonl (not a lane dataset)")
+    counts = MaskCounts()
+    recs = [json.loads(line) for line in labels.read_text().splitlines() if line.strip()]
+    for rec in tqdm(recs, desc="eval masks", unit="frame", disable=not progress):
+        img = cv2.imread(str(root / rec["image"]), cv2.IMREAD_COLOR)
+        true = cv2.imread(str(root / rec["mask"]), cv2.IMREAD_GRAYSCALE)
+        if img is None or true is None:
+            raise ValueError(f"{root / rec['image']}: unreadable image or mask")
+        prob = seg.probabilities([img])[0]
+        counts.add(to_frame_mask(prob, img.shape[1], img.shape[0]), true, tol)
+    return {"model": str(model or DEFAULT_MODEL), "data": str(root), "tolerance_px": tol, **counts.summary()}

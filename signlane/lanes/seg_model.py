@@ -1,0 +1,81 @@
+"""Lane-marking segmentation model runtime: the ONNX session with its contract, and the one
+pre- and post-processing that training, export parity, evaluation and the runtime all call.
+
+The model takes whole frames resized to its input size (any aspect: a 16:9 frame is squeezed
+like it was in training) and returns class logits (N, 2, h, w) for background / lane marking
+at its output size; `marking_probability` turns them into P(marking) at that size.
+"""
+from __future__ import annotations
+
+from functools import lru_cache
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from signlane.onnx_model import InputSpec, ModelError, OnnxModel
+
+TASK = "lane-segmentation"
+CLASSES = ("background", "lane_marking")
+DEFAULT_MODEL = Path(__file__).resolve().parent.parent / "models" / "lanes.onnx"
+DEFAULT_SPEC = InputSpec(160, 120, "RGB", "NCHW", 1.0 / 255.0, (0.45, 0.45, 0.45), (0.25, 0.25, 0.25))
+MASK_THRESHOLD = 0.5
+
+
+def preprocess_frames(frames_bgr: list[np.ndarray], spec: InputSpec = DEFAULT_SPEC) -> np.ndarray:
+    """uint8 BGR frames (H, W, 3), any size -> float32 (N, 3, spec.height, spec.width) input."""
+    out = np.empty((len(frames_bgr), 3, spec.height, spec.width), np.float32)
+    mean = np.array(spec.mean, np.float32).reshape(1, 1, 3)
+    inv_std = (1.0 / np.array(spec.std, np.float32)).reshape(1, 1, 3)
+    for i, f in enumerate(frames_bgr):
+        if f.ndim != 3 or f.shape[2] != 3 or f.dtype != np.uint8:
+            raise ValueError(f"frame {i}: expected uint8 (H, W, 3) BGR, got {f.dtype} {f.shape}")
+        shrink = f.shape[0] > spec.height or f.shape[1] > spec.width
+        r = cv2.resize(f, (spec.width, spec.height), interpolation=cv2.INTER_AREA if shrink else cv2.INTER_LINEAR)
+        if spec.color == "RGB":
+            r = cv2.cvtColor(r, cv2.COLOR_BGR2RGB)
+        out[i] = ((r.astype(np.float32) * spec.scale - mean) * inv_std).transpose(2, 0, 1)
+    return out
+
+
+def marking_probability(logits: np.ndarray) -> np.ndarray:
+    """(N, 2, h, w) logits -> float32 (N, h, w) P(lane marking) (the 2-class softmax)."""
+    d = np.clip(logits[:, 1] - logits[:, 0], -60.0, 60.0)
+    return (1.0 / (1.0 + np.exp(-d))).astype(np.float32)
+
+
+def mask_target(mask: np.ndarray, size: tuple[int, int], min_cover: float = 0.25) -> np.ndarray:
+    """A label mask uint8 (H, W) 0/255 at the frame's size -> uint8 (h, w) 0/1 at the model's
+    output size (w, h): a cell is marking when paint covers min_cover of it, so lines thinner
+    than a cell survive the downscale."""
+    cover = cv2.resize((mask > 0).astype(np.float32), size, interpolation=cv2.INTER_AREA)
+    return (cover >= min_cover).astype(np.uint8)
+
+
+def to_frame_mask(prob: np.ndarray, width: int, height: int, threshold: float = MASK_THRESHOLD) -> np.ndarray:
+    """float32 (h, w) P(marking) -> uint8 (height, width) 0/255 mask at the frame's size."""
+    up = cv2.resize(prob, (width, height), interpolation=cv2.INTER_LINEAR)
+    return (up > threshold).astype(np.uint8) * 255
+
+
+class LaneSegModel:
+    """The segmentation model with its contract read from the ONNX metadata."""
+
+    def __init__(self, path: str | Path = DEFAULT_MODEL, threads: int = 1):
+        self.model = OnnxModel(path, TASK, threads)
+        if tuple(self.model.classes) != CLASSES:
+            raise ModelError(f"{path}: classes {self.model.classes} are not {list(CLASSES)}")
+        self.spec = self.model.input
+
+    def probabilities(self, frames_bgr: list[np.ndarray]) -> np.ndarray:
+        """float32 (N, h, w) P(lane marking) at the model's output size."""
+        logits = self.model.run(preprocess_frames(frames_bgr, self.spec))
+        if logits.ndim != 4 or logits.shape[1] != len(CLASSES):
+            raise ModelError(f"{self.model.path}: output shape {logits.shape} is not (N, 2, h, w)")
+        return marking_probability(logits)
+
+
+@lru_cache(maxsize=4)
+def load(path: str, threads: int = 1) -> LaneSegModel:
+    """One session per (file, threads) per process: lane methods are called frame by frame."""
+    return LaneSegModel(path, threads)

@@ -1,0 +1,337 @@
+"""The drive server: the VIA simulator (or `signlane sim`) connects, sends frames, gets commands.
+
+Each connection gets its own Driver. For every text frame the server answers one command:
+  - driver idle: decode + Driver.step run on a worker thread (the event loop keeps serving other
+    frames and clients), and the new command is the answer;
+  - driver busy with an earlier frame: the frame is answered at once with the connection's latest
+    command and not decoded. The simulator never waits for answers, so queueing frames would
+    only make the car act on ever older images; skipping keeps perception on the newest frame and
+    the backlog at zero. A lockstep client (one frame in flight) never sees a skip.
+Bad frames get one (rate-limited) log line and SAFE_COMMAND; nothing a client sends stops the
+server. Run it with `signlane drive`, `serve()` inside an event loop, or `DriveServer` in a
+background thread (tests, `signlane sim --with-driver`).
+"""
+from __future__ import annotations
+
+import asyncio
+import logging
+import os
+import signal
+import threading
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable
+
+from websockets.asyncio.server import ServerConnection
+from websockets.asyncio.server import serve as ws_serve
+from websockets.exceptions import ConnectionClosed
+
+from signlane.config import Config
+from signlane.sim.drive_record import DiskWriter, Recorder, Shower, jpeg_of, sent_command
+from signlane.sim.drive_stats import ErrorLog, Rates
+from signlane.sim.driver import Driver
+from signlane.sim.protocol import (MAX_MESSAGE_BYTES, SAFE_COMMAND, ProtocolError, Telemetry, decode_telemetry,
+                                   encode_command)
+
+log = logging.getLogger("signlane.drive")
+# websockets logs every connection at INFO; ours already says who connected and why they left
+ws_log = logging.getLogger("signlane.drive.websockets")
+ws_log.setLevel(logging.WARNING)
+
+DEFAULT_HOST, DEFAULT_PORT = "127.0.0.1", 4567
+# websockets itself refuses (close code 1009) messages over this many times our limit; the ones in
+# between reach us and get a safe answer, so a slightly oversized frame does not drop the connection
+WS_SIZE_FACTOR = 2
+
+
+@dataclass(frozen=True)
+class ServerOptions:
+    host: str = DEFAULT_HOST
+    port: int = DEFAULT_PORT  # 0 = any free port (see DriveServer.port)
+    max_bytes: int = MAX_MESSAGE_BYTES
+    record: Path | None = None  # driving dataset folder
+    show_every: int = 0  # write every N-th driven frame annotated; 0 = never
+    show_dir: Path | None = None  # where annotated frames go (default: drive_frames/)
+    sync_signs: bool = False  # True: signs in step with every frame (deterministic, lockstep)
+    log_every_s: float = 10.0  # rate/latency report period
+
+
+@dataclass
+class _Result:
+    """What a worker hands back to the event loop for one frame."""
+
+    answer: str
+    step_ms: float
+    error: str = ""
+    perception: Any = None
+    command: Any = None
+    telemetry: Any = None
+
+
+class _Server:
+    """State shared by all connections of one server; touched on the event loop thread only
+    (except `make_driver` and the disk writer, which run on worker threads)."""
+
+    def __init__(self, config: Config, options: ServerOptions, driver_factory: Callable[[], Any] | None):
+        self.config, self.options = config, options
+        self.make_driver = driver_factory or (lambda: Driver(config, sync_signs=options.sync_signs))
+        self.pool = ThreadPoolExecutor(max_workers=max(2, os.cpu_count() or 2), thread_name_prefix="drive-step")
+        self.rates, self.errors = Rates(), ErrorLog()
+        self.recorder = Recorder(options.record, config) if options.record else None
+        self.shower = (Shower(options.show_dir or Path("drive_frames"), options.show_every)
+                       if options.show_every > 0 else None)
+        self.disk = DiskWriter() if (self.recorder or self.shower) else None
+        self.clients = 0
+        self.next_id = 1
+
+    async def handle(self, ws: ServerConnection) -> None:
+        cid, self.next_id = self.next_id, self.next_id + 1
+        self.clients += 1
+        try:
+            await _Connection(self, ws, cid).run()
+        finally:
+            self.clients -= 1
+
+    async def report_loop(self) -> None:
+        while True:
+            await asyncio.sleep(self.options.log_every_s)
+            line = self.rates.report(self.clients)
+            if line:
+                log.info("%s", line)
+
+    def close(self) -> dict:
+        """Finish pending work and writes; the run's totals."""
+        self.pool.shutdown(wait=True)
+        if self.disk:
+            self.disk.close()
+            if self.disk.dropped:
+                log.warning("the disk fell behind: %d frame writes dropped", self.disk.dropped)
+        if self.recorder:
+            self.recorder.close()
+        self.rates.report(self.clients)
+        return dict(self.rates.totals)
+
+
+class _Connection:
+    def __init__(self, server: _Server, ws: ServerConnection, cid: int):
+        self.server, self.ws, self.cid = server, ws, cid
+        self.driver = None
+        self.latest = SAFE_COMMAND  # answer for frames that arrive while the driver is busy
+        self.job: asyncio.Task | None = None
+        self.frames = self.driven = 0
+
+    async def run(self) -> None:
+        peer = self.ws.remote_address
+        log.info("client %d connected from %s", self.cid, f"{peer[0]}:{peer[1]}" if peer else "?")
+        loop = asyncio.get_running_loop()
+        try:
+            self.driver = await loop.run_in_executor(self.server.pool, self.server.make_driver)
+            async for message in self.ws:
+                await self.on_message(message)
+            log.info("client %d disconnected after %d frames", self.cid, self.frames)
+        except ConnectionClosed as e:  # closed without a close frame, mid-message, or too big
+            why = f"code {e.rcvd.code} {e.rcvd.reason!r}" if e.rcvd else "no close frame"
+            if e.sent and e.sent.code == 1009:
+                why = f"message over {self.server.options.max_bytes * WS_SIZE_FACTOR} bytes, closed with 1009"
+            log.info("client %d dropped after %d frames (%s)", self.cid, self.frames, why)
+        finally:
+            if self.job is not None:
+                await asyncio.gather(self.job, return_exceptions=True)  # never close a driver mid-step
+            if self.driver is not None:
+                self.driver.close()
+
+    async def on_message(self, message: str | bytes) -> None:
+        t_recv = time.perf_counter()
+        self.frames += 1
+        rates = self.server.rates
+        rates.frames += 1
+        problem = self.precheck(message)
+        if problem:
+            rates.bad += 1
+            self.server.errors.warning(f"client {self.cid}: {problem}; answered with the safe command")
+            await self.send(SAFE_COMMAND, t_recv)
+        elif self.job is not None and not self.job.done():
+            rates.skipped += 1
+            await self.send(self.latest, t_recv)
+        else:
+            self.job = asyncio.create_task(self.drive(message, t_recv))
+
+    def precheck(self, message: str | bytes) -> str:
+        """Problems found without decoding (so even while the driver is busy)."""
+        if isinstance(message, (bytes, bytearray)):
+            return f"binary message of {len(message)} bytes (the protocol sends JSON text)"
+        if len(message) > self.server.options.max_bytes:
+            return f"message of {len(message)} bytes is over the {self.server.options.max_bytes}-byte limit"
+        return ""
+
+    async def drive(self, message: str, t_recv: float) -> None:
+        loop = asyncio.get_running_loop()
+        try:
+            res = await loop.run_in_executor(self.server.pool, self.work, message)
+        except Exception as e:  # a driver bug on some frame must not end the connection
+            res = _Result(SAFE_COMMAND, 0.0, f"driver failed: {type(e).__name__}: {e}")
+        rates = self.server.rates
+        if res.error:
+            rates.bad += 1
+            self.server.errors.warning(f"client {self.cid}: {res.error}; answered with the safe command")
+        else:
+            rates.processed += 1
+            rates.step_ms.append(res.step_ms)
+        self.latest = res.answer
+        await self.send(res.answer, t_recv)
+        if not res.error:
+            self.keep(message, res)
+            self.driven += 1
+
+    def work(self, message: str) -> _Result:
+        """Runs on a worker thread: decode, perceive, decide."""
+        t0 = time.perf_counter()
+        try:
+            tel = decode_telemetry(message, self.server.options.max_bytes)
+        except ProtocolError as e:
+            return _Result(SAFE_COMMAND, (time.perf_counter() - t0) * 1e3, str(e))
+        perception, cmd = self.driver.step(tel)
+        answer = encode_command(cmd.steering, cmd.throttle)
+        return _Result(answer, (time.perf_counter() - t0) * 1e3, "", perception, cmd, tel)
+
+    async def send(self, answer: str, t_recv: float) -> None:
+        try:
+            await self.ws.send(answer)
+        except ConnectionClosed:
+            return  # the reader loop reports the disconnect
+        self.server.rates.answer_ms.append((time.perf_counter() - t_recv) * 1e3)
+
+    def keep(self, message: str, res: _Result) -> None:
+        """Hand a driven frame to the disk thread (recording, annotated frames)."""
+        s = self.server
+        if s.disk is None:
+            return
+        frame_id = f"c{self.cid}-{self.driven:06d}"
+        sent = sent_command(res.answer, res.command.state)
+        if s.recorder:
+            s.disk.submit(lambda: s.recorder.write(frame_id, self.cid, jpeg_of(message), res.telemetry,
+                                                   res.perception, sent))
+        if s.shower and s.shower.wants(self.driven):
+            s.disk.submit(s.shower.write, frame_id, res.telemetry.speed, res.perception, sent)
+
+
+def probe_driver(make_driver: Callable[[], Any]) -> None:
+    """Build a driver and drive one grey frame, so what would fail every connection (an unknown
+    lane method, a missing model file: models load on the first frame) fails before listening."""
+    import numpy as np
+    from signlane.onnx_model import ModelError
+    driver = make_driver()
+    try:
+        driver.step(Telemetry(0.0, 0.0, 0.0, np.full((240, 320, 3), 110, np.uint8), 0.0))
+    except (ModelError, ValueError, OSError):
+        raise
+    except Exception as e:  # a driver bug on a blank frame: worth a line, not a refusal to serve
+        log.warning("the driver failed on a blank test frame: %s: %s", type(e).__name__, e)
+    finally:
+        driver.close()
+
+
+async def serve(config: Config | None = None, options: ServerOptions | None = None,
+                driver_factory: Callable[[], Any] | None = None,
+                ready: Callable[[int], None] | None = None, stop: asyncio.Event | None = None) -> dict:
+    """Serve until `stop` is set (forever if None); returns the run's totals.
+
+    `ready(port)` is called once listening (port is the bound one when options.port is 0).
+    `driver_factory()` builds each connection's driver (default: Driver(config))."""
+    config = config or Config()
+    options = options or ServerOptions()
+    server = _Server(config, options, driver_factory)
+    try:
+        await asyncio.get_running_loop().run_in_executor(server.pool, probe_driver, server.make_driver)
+        async with ws_serve(server.handle, options.host, options.port,
+                            max_size=options.max_bytes * WS_SIZE_FACTOR, logger=ws_log) as ws_server:
+            port = ws_server.sockets[0].getsockname()[1]
+            log.info("drive server listening on ws://%s:%d (lanes %s, signs %s)", options.host, port,
+                     config.lanes.method, "on" if config.signs.enabled else "off")
+            if ready:
+                ready(port)
+            reporter = asyncio.create_task(server.report_loop())
+            try:
+                await (stop.wait() if stop else asyncio.Future())
+            finally:
+                reporter.cancel()
+                ws_server.close()  # closes every connection (1001) and waits for their handlers
+    finally:
+        totals = server.close()
+    log.info("drive server stopped: %d frames, %d driven, %d skipped, %d bad", totals["frames"],
+             totals["processed"], totals["skipped"], totals["bad"])
+    return totals
+
+
+def run_server(config: Config, options: ServerOptions) -> dict:
+    """Serve in the foreground until Ctrl-C or SIGTERM, then shut down cleanly."""
+    async def main() -> dict:
+        stop = asyncio.Event()
+        loop = asyncio.get_running_loop()
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            loop.add_signal_handler(sig, stop.set)
+        return await serve(config, options, stop=stop)
+    return asyncio.run(main())
+
+
+class DriveServer:
+    """The drive server on a background thread, for tests and `signlane sim --with-driver`:
+
+        with DriveServer(config) as srv:   # listens on a free port
+            connect(srv.url) ...
+    """
+
+    def __init__(self, config: Config | None = None, options: ServerOptions | None = None,
+                 driver_factory: Callable[[], Any] | None = None, start_timeout_s: float = 60.0):
+        self.config = config or Config()
+        self.options = options or ServerOptions(port=0)
+        self.driver_factory = driver_factory
+        self.start_timeout_s = start_timeout_s
+        self.port: int | None = None
+        self.totals: dict | None = None
+        self._ready = threading.Event()
+        self._error: BaseException | None = None
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._stop: asyncio.Event | None = None
+        self._thread = threading.Thread(target=self._main, name="drive-server", daemon=True)
+
+    @property
+    def url(self) -> str:
+        return f"ws://{self.options.host}:{self.port}"
+
+    def _main(self) -> None:
+        async def main() -> None:
+            self._loop, self._stop = asyncio.get_running_loop(), asyncio.Event()
+            self.totals = await serve(self.config, self.options, self.driver_factory, self._set_port, self._stop)
+        try:
+            asyncio.run(main())
+        except BaseException as e:  # reported to the thread that called start()
+            self._error = e
+        finally:
+            self._ready.set()
+
+    def _set_port(self, port: int) -> None:
+        self.port = port
+        self._ready.set()
+
+    def start(self) -> "DriveServer":
+        self._thread.start()
+        if not self._ready.wait(self.start_timeout_s):
+            raise TimeoutError(f"drive server did not start within {self.start_timeout_s:.0f} s")
+        if self._error is not None:
+            raise self._error
+        return self
+
+    def close(self) -> None:
+        if self._loop is not None and self._thread.is_alive():
+            self._loop.call_soon_threadsafe(self._stop.set)
+        self._thread.join(timeout=30)
+
+    def __enter__(self) -> "DriveServer":
+        return self.start()
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+

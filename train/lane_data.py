@@ -1,0 +1,131 @@
+"""Lane-segmentation data for training: lane dataset folders (`signlane gen lanes`, `signlane
+autolabel lanes`, or any folder of images/ + masks/<stem>.png made by hand), mixed freely.
+
+Albumentations run jointly on the uint8 BGR frame and its mask at the frame's size; then the
+runtime's own `preprocess_frames` makes the input and `mask_target` the target, so training sees
+exactly what the car's model will see.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import albumentations as A
+import cv2
+import lightning as L
+import numpy as np
+import torch
+from torch.utils.data import DataLoader, Dataset
+
+from signlane.lanes.seg_model import DEFAULT_SPEC, mask_target, preprocess_frames
+from signlane.onnx_model import InputSpec
+
+IMAGE_EXT = (".jpg", ".jpeg", ".png", ".bmp")
+
+
+@dataclass(frozen=True)
+class Item:
+    image: Path
+    mask: Path
+    key: str  # stable name for the train/val split
+
+
+def list_frames(roots: list[Path]) -> list[Item]:
+    """(image, mask) pairs of every folder: from labels.jsonl when present, else images/<stem>.*
+    paired with masks/<stem>.png. A folder with neither is an error."""
+    items: list[Item] = []
+    for root in map(Path, roots):
+        labels = root / "labels.jsonl"
+        if labels.is_file():
+            for line in labels.read_text().splitlines():
+                if line.strip():
+                    rec = json.loads(line)
+                    items.append(Item(root / rec["image"], root / rec["mask"], f"{root.name}/{rec['id']}"))
+        elif (root / "images").is_dir() and (root / "masks").is_dir():
+            for img in sorted((root / "images").iterdir()):
+                m = root / "masks" / f"{img.stem}.png"
+                if img.suffix.lower() in IMAGE_EXT and m.is_file():
+                    items.append(Item(img, m, f"{root.name}/{img.stem}"))
+        else:
+            raise ValueError(f"{root}: not a lane dataset (needs labels.jsonl, or images/ and masks/)")
+    if not items:
+        raise ValueError(f"no frames with masks found under {', '.join(map(str, roots))}")
+    return items
+
+
+def split_of(key: str, val_fraction: float) -> str:
+    """A stable train/val split by name hash (the same frame always lands on the same side)."""
+    h = int(hashlib.sha1(key.encode()).hexdigest()[:8], 16)
+    return "val" if (h % 10000) / 10000.0 < val_fraction else "train"
+
+
+def train_augment() -> A.Compose:
+    """Other cameras (mirror, roll, zoom, shift, perspective), light, weather and sensors beyond
+    the renderer's, applied to frame and mask together (the mask by nearest neighbour)."""
+    return A.Compose([
+        A.HorizontalFlip(p=0.5),  # a mirrored road is still a road: paint stays paint
+        A.Affine(scale=(0.85, 1.15), translate_percent=(-0.06, 0.06), rotate=(-6, 6), p=0.6),
+        A.Perspective(scale=(0.02, 0.06), p=0.3),
+        A.RandomBrightnessContrast(brightness_limit=0.35, contrast_limit=0.4, p=0.8),
+        A.RandomGamma(gamma_limit=(55, 170), p=0.4),
+        A.HueSaturationValue(hue_shift_limit=15, sat_shift_limit=40, val_shift_limit=25, p=0.6),
+        A.ToGray(p=0.08),
+        A.RandomShadow(shadow_roi=(0, 0.4, 1, 1), num_shadows_limit=(1, 3), p=0.25),
+        A.OneOf([A.MotionBlur(blur_limit=(3, 7)), A.GaussianBlur(sigma_limit=(0.3, 1.5))], p=0.3),
+        A.GaussNoise(std_range=(0.01, 0.08), p=0.35),
+        A.ImageCompression(quality_range=(20, 95), p=0.4),
+    ])
+
+
+def read_pair(item: Item) -> tuple[np.ndarray, np.ndarray]:
+    img = cv2.imread(str(item.image), cv2.IMREAD_COLOR)
+    mask = cv2.imread(str(item.mask), cv2.IMREAD_GRAYSCALE)
+    if img is None or mask is None:
+        raise ValueError(f"{item.image if img is None else item.mask}: unreadable")
+    if mask.shape != img.shape[:2]:
+        raise ValueError(f"{item.mask}: mask {mask.shape} is not the image's size {img.shape[:2]}")
+    return img, mask
+
+
+class FrameDataset(Dataset):
+    def __init__(self, items: list[Item], spec: InputSpec, augment: A.Compose | None = None):
+        self.items, self.spec, self.augment = items, spec, augment
+
+    def __len__(self) -> int:
+        return len(self.items)
+
+    def __getitem__(self, i: int):
+        img, mask = read_pair(self.items[i])
+        if self.augment is not None:
+            out = self.augment(image=img, mask=mask)
+            img, mask = out["image"], out["mask"]
+        x = preprocess_frames([img], self.spec)[0]
+        y = mask_target(mask, (self.spec.width, self.spec.height))
+        return torch.from_numpy(x), torch.from_numpy(y.astype(np.int64))
+
+
+class LaneDataModule(L.LightningDataModule):
+    def __init__(self, roots: list[str | Path], batch_size: int = 32, val_fraction: float = 0.1,
+                 spec: InputSpec = DEFAULT_SPEC, workers: int = 0):
+        super().__init__()
+        self.roots = [Path(r) for r in roots]
+        self.batch_size, self.val_fraction, self.spec, self.workers = batch_size, val_fraction, spec, workers
+
+    def setup(self, stage: str | None = None) -> None:
+        items = list_frames(self.roots)
+        self.train_items = [it for it in items if split_of(it.key, self.val_fraction) == "train"]
+        self.val_items = [it for it in items if split_of(it.key, self.val_fraction) == "val"]
+        if not self.train_items or not self.val_items:
+            raise ValueError(f"need frames on both sides of the split; got {len(self.train_items)} train, "
+                             f"{len(self.val_items)} val")
+
+    def train_dataloader(self) -> DataLoader:
+        return DataLoader(FrameDataset(self.train_items, self.spec, train_augment()), batch_size=self.batch_size,
+                          shuffle=True, num_workers=self.workers, persistent_workers=self.workers > 0,
+                          drop_last=len(self.train_items) > 2 * self.batch_size)
+
+    def val_dataloader(self) -> DataLoader:
+        return DataLoader(FrameDataset(self.val_items, self.spec), batch_size=64, num_workers=self.workers,
+                          persistent_workers=self.workers > 0)

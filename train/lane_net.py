@@ -1,0 +1,60 @@
+"""The lane-marking segmentation network: a plain nn.Module (export-friendly) sized for one CPU
+thread. A strided stem and depthwise-separable stages go down to 1/8 for context (dashes,
+shadows, worn paint need a wide view); a light decoder with skips comes back to 1/2 of the
+input, where a pixel shuffle makes the logits at the input's full size (each 1/2 cell predicts
+its 2x2 pixels: thin far lines keep their position at a quarter of the cost of a 1/1 decoder)."""
+from __future__ import annotations
+
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+
+def _cbr(cin: int, cout: int, k: int = 1, stride: int = 1, groups: int = 1, dilation: int = 1) -> nn.Sequential:
+    pad = dilation * (k // 2)
+    return nn.Sequential(nn.Conv2d(cin, cout, k, stride, pad, dilation=dilation, groups=groups, bias=False),
+                         nn.BatchNorm2d(cout), nn.ReLU(inplace=True))
+
+
+class SepBlock(nn.Module):
+    """Depthwise 3x3 + pointwise 1x1; residual when the shape is kept."""
+
+    def __init__(self, cin: int, cout: int, stride: int = 1, dilation: int = 1):
+        super().__init__()
+        self.dw = _cbr(cin, cin, 3, stride, groups=cin, dilation=dilation)
+        self.pw = nn.Sequential(nn.Conv2d(cin, cout, 1, bias=False), nn.BatchNorm2d(cout))
+        self.residual = stride == 1 and cin == cout
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        y = self.pw(self.dw(x))
+        return F.relu(y + x if self.residual else y)
+
+
+class LaneSegNet(nn.Module):
+    """3 x H x W (H, W multiples of 8) -> class logits (N, classes, H, W)."""
+
+    def __init__(self, classes: int = 2, width: int = 16):
+        super().__init__()
+        w = width
+        self.stem = _cbr(3, w, 3, 2)  # 1/2
+        self.down1 = nn.Sequential(SepBlock(w, 2 * w, 2), SepBlock(2 * w, 2 * w))  # 1/4
+        self.down2 = nn.Sequential(SepBlock(2 * w, 4 * w, 2), SepBlock(4 * w, 4 * w, dilation=2),
+                                   SepBlock(4 * w, 4 * w, dilation=4))  # 1/8, wide receptive field
+        self.lat2 = _cbr(4 * w, 2 * w)
+        self.fuse1 = SepBlock(2 * w, 2 * w)
+        self.lat1 = _cbr(2 * w, w)
+        self.fuse0 = SepBlock(w, w)
+        self.head = nn.Sequential(nn.Conv2d(w, 4 * classes, 1), nn.PixelShuffle(2))
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        s0 = self.stem(x)
+        s1 = self.down1(s0)
+        s2 = self.down2(s1)
+        # channels are reduced before upsampling: the 1x1 convs then run on 4x fewer pixels
+        d1 = self.fuse1(F.interpolate(self.lat2(s2), scale_factor=2.0, mode="nearest") + s1)
+        d0 = self.fuse0(F.interpolate(self.lat1(d1), scale_factor=2.0, mode="nearest") + s0)
+        return self.head(d0)
+
+
+def count_parameters(model: nn.Module) -> int:
+    return sum(p.numel() for p in model.parameters())
