@@ -9,8 +9,9 @@ consecutive drive, so lane tracking behaves as on the road.
   flood:    send every frame back to back without waiting (what VIA does when the server is
             slower than the simulator); answers/s and the share of frames actually driven (the
             rest were answered at once with the latest command).
-The baseline row is a server whose driver does nothing: JSON + base64 + JPEG decode and the
-WebSocket round trip only, measured in the same run; 'x base' divides a row's median by it.
+The baseline is a server whose driver does nothing: JSON + base64 + JPEG decode and the WebSocket
+round trip only. It runs beside every row and is timed right before it in each repeat; 'x base'
+is the median over repeats of (row median / baseline median), robust to load drifting mid-run.
 
     python benchmarks/drive.py [--frames 40] [--repeats 3] [--method NAME ...]
 
@@ -94,31 +95,55 @@ def flood(url: str, messages: list[str]) -> float:
         return len(messages) / (time.perf_counter() - t0)
 
 
-def measure(name: str, method: str | None, signs: bool, messages: list[str], repeats: int) -> dict:
-    ctx = mp.get_context("spawn")
-    parent, child = ctx.Pipe()
-    proc = ctx.Process(target=_child, args=(method, signs, child), daemon=True)
-    proc.start()
-    try:
-        kind, value = parent.recv()
+class ChildServer:
+    """A drive server in a child process: `with ChildServer(method, signs) as url:`."""
+
+    def __init__(self, method: str | None, signs: bool):
+        ctx = mp.get_context("spawn")
+        self.conn, child = ctx.Pipe()
+        self.proc = ctx.Process(target=_child, args=(method, signs, child), daemon=True)
+        self.totals: dict = {}
+
+    def __enter__(self) -> str:
+        self.proc.start()
+        kind, value = self.conn.recv()
         if kind == "error":
-            return {"name": name, "error": value}
-        url = f"ws://127.0.0.1:{value}"
-        lockstep(url, messages[:5])  # warm up: first-frame setup, model load, caches
-        runs = [lockstep(url, messages) for _ in range(repeats)]
-        answers_s = statistics.median(flood(url, messages) for _ in range(repeats))
-        parent.send("stop")
-        totals = parent.recv()[1]
-    finally:
-        proc.join(30)
+            self.proc.join(30)
+            raise RuntimeError(value)
+        return f"ws://127.0.0.1:{value}"
+
+    def __exit__(self, *exc) -> None:
+        if self.proc.is_alive():
+            self.conn.send("stop")
+            self.totals = self.conn.recv()[1]
+        self.proc.join(30)
+
+
+def measure(name: str, method: str | None, signs: bool, messages: list[str], repeats: int,
+            base_url: str) -> dict:
+    """One row. Each repeat times the baseline server right before this one, so the ratio
+    compares the two under the same load (the machine is shared; absolute numbers drift)."""
+    srv = ChildServer(method, signs)
+    try:
+        with srv as url:
+            lockstep(url, messages[:5])  # warm up: first-frame setup, model load, caches
+            runs, base_runs = [], []
+            for _ in range(repeats):
+                base_runs.append(lockstep(base_url, messages))
+                runs.append(lockstep(url, messages))
+            answers_s = statistics.median(flood(url, messages) for _ in range(repeats))
+    except RuntimeError as e:
+        return {"name": name, "error": str(e)}
     flood_frames = repeats * len(messages)
-    if totals["bad"]:
-        return {"name": name, "error": f"the driver failed on {totals['bad']} frames (see the log above)"}
+    if srv.totals["bad"]:
+        return {"name": name, "error": f"the driver failed on {srv.totals['bad']} frames (see the log above)"}
     return {"name": name, "median": statistics.median(float(np.median(r)) for r, _ in runs),
             "p99": statistics.median(float(np.percentile(r, 99)) for r, _ in runs),
+            "ratio": statistics.median(float(np.median(r) / np.median(b)) for (r, _), (b, _) in zip(runs, base_runs)),
+            "base": statistics.median(float(np.median(b)) for b, _ in base_runs),
             "fps": statistics.median(f for _, f in runs), "flood": answers_s,
             # lockstep never skips, so every skip happened during the floods
-            "driven": 100.0 * (1 - totals["skipped"] / flood_frames)}
+            "driven": 100.0 * (1 - srv.totals["skipped"] / flood_frames)}
 
 
 def main() -> None:
@@ -132,22 +157,24 @@ def main() -> None:
     messages = [encode_telemetry(0.0, 0.4, 8.0, encode_jpeg(sampler.sample(i).image), time=i / 20)
                 for i in range(args.frames)]
     kb = np.mean([len(m) for m in messages]) / 1024
-    rows = [measure(BASELINE, None, False, messages, args.repeats)]
-    for m in args.method or lanes.available():
-        rows.append(measure(m, m, False, messages, args.repeats))
-    default = Config().lanes.method  # and the default driver as `signlane drive` runs it: signs on
-    rows.append(measure(f"{default} + signs", default, True, messages, args.repeats))
+    with ChildServer(None, False) as base_url:
+        lockstep(base_url, messages[:5])
+        rows = [measure(BASELINE, None, False, messages, args.repeats, base_url)]
+        for m in args.method or lanes.available():
+            rows.append(measure(m, m, False, messages, args.repeats, base_url))
+        default = Config().lanes.method  # and the default driver as `signlane drive` runs it: signs on
+        rows.append(measure(f"{default} + signs", default, True, messages, args.repeats, base_url))
     print(f"640x480 frames, {kb:.0f} KB per message, {args.frames} frames x {args.repeats} repeats (medians)")
-    print(f"{'server':<24} {'median ms':>9} {'p99 ms':>7} {'x base':>6} {'lockstep fps':>12} "
+    print(f"{'server':<24} {'median ms':>9} {'p99 ms':>7} {'base ms':>7} {'x base':>6} {'lockstep fps':>12} "
           f"{'flood ans/s':>11} {'driven %':>8}")
-    base = rows[0].get("median")
     for r in rows:
         if "error" in r:
             print(f"{r['name']:<24} unavailable: {r['error'][:90]}")
             continue
-        print(f"{r['name']:<24} {r['median']:9.1f} {r['p99']:7.1f} {r['median'] / base:6.1f} {r['fps']:12.1f} "
-              f"{r['flood']:11.0f} {r['driven']:8.0f}")
-
+        print(f"{r['name']:<24} {r['median']:9.1f} {r['p99']:7.1f} {r['base']:7.1f} {r['ratio']:6.2f} "
+              f"{r['fps']:12.1f} {r['flood']:11.0f} {r['driven']:8.0f}")
+    print("base ms: the baseline server timed in the same repeats; x base: median of per-repeat ratios. "
+          "Shared 2-core machine: absolute times are upper bounds.")
 
 if __name__ == "__main__":
     main()

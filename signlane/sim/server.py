@@ -136,6 +136,9 @@ class _Connection:
             if e.sent and e.sent.code == 1009:
                 why = f"message over {self.server.options.max_bytes * WS_SIZE_FACTOR} bytes, closed with 1009"
             log.info("client %d dropped after %d frames (%s)", self.cid, self.frames, why)
+        except Exception as e:  # e.g. the driver cannot be built: end this connection, not the server
+            log.error("client %d: %s: %s; closing its connection", self.cid, type(e).__name__, e)
+            await self.ws.close(1011, "driver error")
         finally:
             if self.job is not None:
                 await asyncio.gather(self.job, return_exceptions=True)  # never close a driver mid-step
@@ -270,8 +273,15 @@ def run_server(config: Config, options: ServerOptions) -> dict:
     async def main() -> dict:
         stop = asyncio.Event()
         loop = asyncio.get_running_loop()
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            loop.add_signal_handler(sig, stop.set)
+        signals = (signal.SIGINT, signal.SIGTERM)
+
+        def on_signal() -> None:
+            log.info("stopping (again to force)")
+            for sig in signals:  # a second Ctrl-C interrupts a shutdown that hangs
+                loop.remove_signal_handler(sig)
+            stop.set()
+        for sig in signals:
+            loop.add_signal_handler(sig, on_signal)
         return await serve(config, options, stop=stop)
     return asyncio.run(main())
 
