@@ -47,12 +47,8 @@ def lane_record(sid: str, est: LaneEstimate, width: int, height: int, method: st
     """The labels.jsonl object of a pseudo-labelled frame (the lane dataset contract)."""
     def pl(a):
         return [] if a is None else [[round(float(x), 2), round(float(y), 2)] for x, y in a]
-    center = []
-    if est.left is not None and est.right is not None and len(est.left) and len(est.right):
-        n = min(len(est.left), len(est.right))
-        center = pl(0.5 * (est.left[:n] + est.right[:n]))
     return {"id": sid, "image": f"images/{sid}.jpg", "mask": f"masks/{sid}.png", "width": width, "height": height,
-            "lane": {"left": pl(est.left), "right": pl(est.right), "center": center,
+            "lane": {"left": pl(est.left), "right": pl(est.right), "center": pl(_center(est.left, est.right)),
                      "offset": round(float(est.offset), 5), "heading": round(float(est.heading), 5),
                      "curvature": round(float(est.curvature), 6)},
             "signs": [], "steering": teacher_steering(est.offset, est.heading, est.curvature),
@@ -105,6 +101,19 @@ def autolabel_lanes(paths: list[str], out: str | Path, method: str = "sliding-wi
     write_manifest(out, "autolabel_lanes", 0, counts, config)
     log.info("%s: kept %d of %d frames", out, len(records), seen)
     return {"counts": counts, "failed": failed}
+
+
+def _center(left, right) -> np.ndarray | None:
+    """Midpoints of the boundaries row by row (image rows; the polylines' points do not pair up
+    by index once each was clipped to the frame)."""
+    if left is None or right is None or len(left) < 2 or len(right) < 2:
+        return None
+    order = np.argsort(right[:, 1])
+    ry, rx = right[order, 1], right[order, 0]
+    keep = (left[:, 1] >= ry[0]) & (left[:, 1] <= ry[-1])
+    if keep.sum() < 2:
+        return None
+    return np.column_stack([0.5 * (left[keep, 0] + np.interp(left[keep, 1], ry, rx)), left[keep, 1]])
 
 
 def _pts(a) -> list:

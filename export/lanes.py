@@ -12,7 +12,8 @@ from signlane.onnx_model import make_metadata
 
 
 def export_lanes(ckpt: str | Path, out: str | Path, metrics: dict | None = None, tol: float = 1e-4) -> dict:
-    """Export a lanes checkpoint; returns a report (parity, size, parameters)."""
+    """Export a lanes checkpoint; returns a report (parity, size, parameters). Without `metrics`
+    the run's report.json val scores go into the metadata."""
     from train.lane_net import count_parameters
     from train.lane_task import LaneTask
     ckpt, out = Path(ckpt), Path(out)
@@ -26,6 +27,9 @@ def export_lanes(ckpt: str | Path, out: str | Path, metrics: dict | None = None,
     run = run_dir_of(ckpt)
     cfg = json.loads((run / "config.json").read_text()) if (run / "config.json").exists() else {}
     roots = cfg.get("data", [])
+    if metrics is None and (run / "report.json").exists():  # the run's val scores travel with the model
+        report = json.loads((run / "report.json").read_text())
+        metrics = {k: v for k, v in report.items() if k.startswith("val_")}
     meta = make_metadata(TASK, list(CLASSES), spec, data_hash(roots) if roots else "unknown", metrics or {},
                          {"arch": f"LaneSegNet width {task.hparams.width}", "checkpoint": ckpt.name,
                           "output": json.dumps({"size": "input", "classes": list(CLASSES), "kind": "logits"})})

@@ -2,6 +2,7 @@
 pseudo-labelled lane sets; report marking F1 within 2 px at the frame's size on the val split."""
 from __future__ import annotations
 
+import json
 import logging
 import time
 from pathlib import Path
@@ -9,6 +10,7 @@ from pathlib import Path
 import torch
 
 from signlane.eval_masks import MaskCounts
+from signlane.fileio import atomic_write_text
 from signlane.lanes.seg_model import DEFAULT_SPEC, marking_probability, preprocess_frames, to_frame_mask
 from train.common import ScaleOut, build_trainer, resume_path, save_run_config
 from train.lane_data import FrameDataset, LaneDataModule, read_pair
@@ -22,7 +24,8 @@ def train_lanes(data: list[str | Path], out: str | Path, epochs: int = 15, batch
                 width: int = 16, val_fraction: float = 0.1, patience: int = 5, seed: int = 0, resume: bool = False,
                 scale: ScaleOut = ScaleOut(), workers: int = 1, quiet: bool = False, pos_weight: float = 4.0,
                 eval_frames: int = 300, threads: int = 0) -> dict:
-    """Train; writes checkpoints/, logs/, tensorboard/, samples/epoch_<k>.png and config.json.
+    """Train; writes checkpoints/, logs/, tensorboard/, samples/epoch_<k>.png, config.json and
+    report.json (the best checkpoint's val scores).
     threads > 0 caps torch's CPU threads: on a busy machine one thread trains several times faster
     than threads that wait for each other on shared cores."""
     import lightning as L
@@ -51,6 +54,7 @@ def train_lanes(data: list[str | Path], out: str | Path, epochs: int = 15, batch
     report = evaluate_checkpoint(best, dm.val_items[:eval_frames])
     report.update({"best_checkpoint": best, "train_seconds": round(seconds, 1),
                    "parameters": count_parameters(task.net)})
+    atomic_write_text(out / "report.json", json.dumps(report, indent=1))  # export puts it in the metadata
     return report
 
 

@@ -20,8 +20,13 @@ log = logging.getLogger(__name__)
 
 def train_signs(data: list[str | Path], out: str | Path, epochs: int = 20, batch_size: int = 128, lr: float = 3e-3,
                 size: int = 32, val_fraction: float = 0.1, patience: int = 6, seed: int = 0, resume: bool = False,
-                scale: ScaleOut = ScaleOut(), workers: int = 0, quiet: bool = False, width: int = 16) -> dict:
-    """Train; writes checkpoints/, logs/, tensorboard/, config.json, confusion.png, errors_<class>.png."""
+                scale: ScaleOut = ScaleOut(), workers: int = 0, quiet: bool = False, width: int = 16,
+                class_weights: str = "sqrt") -> dict:
+    """Train; writes checkpoints/, logs/, tensorboard/, config.json, confusion.png, errors_<class>.png.
+    class_weights 'sqrt' weighs the loss by square-root inverse class frequency; 'none' weighs every
+    crop alike, so the many 'unknown' crops pull harder against taking a non-sign for a sign."""
+    if class_weights not in ("sqrt", "none"):
+        raise ValueError(f"class_weights must be 'sqrt' or 'none', not {class_weights!r}")
     import lightning as L
     from dataclasses import replace
     from signlane.signs.classifier import DEFAULT_SPEC
@@ -32,9 +37,11 @@ def train_signs(data: list[str | Path], out: str | Path, epochs: int = 20, batch
     spec = replace(DEFAULT_SPEC, width=size, height=size)
     dm = SignDataModule(data, batch_size, val_fraction, spec, workers)
     dm.setup()
-    task = SignTask(size=size, lr=lr, epochs=epochs, class_weights=dm.class_weights().tolist(), width=width)
+    weights = dm.class_weights().tolist() if class_weights == "sqrt" else None
+    task = SignTask(size=size, lr=lr, epochs=epochs, class_weights=weights, width=width)
     save_run_config(out, {"task": "signs", "data": [str(d) for d in data], "epochs": epochs,
-                          "batch_size": batch_size, "lr": lr, "size": size, "width": width, "val_fraction": val_fraction,
+                          "batch_size": batch_size, "lr": lr, "size": size, "width": width, "class_weights": class_weights,
+                          "val_fraction": val_fraction,
                           "seed": seed, "train_crops": len(dm.train_items), "val_crops": len(dm.val_items),
                           "scale_out": scale.__dict__})
     trainer, ckpt = build_trainer(out, epochs, "val/acc", "max", patience, scale, quiet=quiet)

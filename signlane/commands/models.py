@@ -34,6 +34,8 @@ def add_train(sub) -> None:
     signs.add_argument("--size", type=int, choices=[32, 48], default=32, help="input size (default 32)")
     signs.add_argument("--width", type=int, default=16, help="channels of the first stage (default 16)")
     signs.add_argument("--patience", type=positive, default=6, help="early-stopping patience in epochs (default 6)")
+    signs.add_argument("--class-weights", choices=["sqrt", "none"], default="sqrt",
+                       help="loss weights: square-root inverse class frequency, or every crop alike (default sqrt)")
     signs.add_argument("--seed", type=int, default=0, help="training seed (default 0)")
     signs.add_argument("--workers", type=int, default=0, help="data-loader worker processes (default 0)")
     signs.add_argument("--resume", action="store_true", help="continue from --out/checkpoints/last.ckpt")
@@ -77,7 +79,8 @@ def _run_train(args) -> int:
     try:
         report = train_signs(args.data, args.out, epochs=args.epochs, batch_size=args.batch_size, lr=args.lr,
                              size=args.size, patience=args.patience, seed=args.seed, resume=args.resume,
-                             scale=scale, workers=args.workers, width=args.width)
+                             scale=scale, workers=args.workers, width=args.width,
+                             class_weights=args.class_weights)
     except ValueError as e:
         raise UserError(str(e)) from None
     report.pop("confusion", None)

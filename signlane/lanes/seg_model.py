@@ -25,8 +25,9 @@ MASK_THRESHOLD = 0.5
 def preprocess_frames(frames_bgr: list[np.ndarray], spec: InputSpec = DEFAULT_SPEC) -> np.ndarray:
     """uint8 BGR frames (H, W, 3), any size -> float32 (N, 3, spec.height, spec.width) input."""
     out = np.empty((len(frames_bgr), 3, spec.height, spec.width), np.float32)
-    mean = np.array(spec.mean, np.float32).reshape(1, 1, 3)
-    inv_std = (1.0 / np.array(spec.std, np.float32)).reshape(1, 1, 3)
+    # (x * scale - mean) / std as one multiply-add per pixel
+    gain = (spec.scale / np.array(spec.std, np.float32)).reshape(3, 1, 1)
+    bias = (np.array(spec.mean, np.float32) / np.array(spec.std, np.float32)).reshape(3, 1, 1)
     for i, f in enumerate(frames_bgr):
         if f.ndim != 3 or f.shape[2] != 3 or f.dtype != np.uint8:
             raise ValueError(f"frame {i}: expected uint8 (H, W, 3) BGR, got {f.dtype} {f.shape}")
@@ -34,7 +35,9 @@ def preprocess_frames(frames_bgr: list[np.ndarray], spec: InputSpec = DEFAULT_SP
         r = cv2.resize(f, (spec.width, spec.height), interpolation=cv2.INTER_AREA if shrink else cv2.INTER_LINEAR)
         if spec.color == "RGB":
             r = cv2.cvtColor(r, cv2.COLOR_BGR2RGB)
-        out[i] = ((r.astype(np.float32) * spec.scale - mean) * inv_std).transpose(2, 0, 1)
+        x = out[i]
+        np.multiply(r.transpose(2, 0, 1), gain, out=x, casting="unsafe")
+        x -= bias
     return out
 
 
