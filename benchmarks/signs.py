@@ -49,9 +49,14 @@ def relocate(command: str, tmp: Path) -> list[str]:
     for arg in argv[1:]:
         for path in MOVED:
             if arg == path or arg.startswith(path + "/"):
-                arg = str(tmp / path.replace("/", "_")) + arg[len(path):]
+                arg = str(moved(path, tmp)) + arg[len(path):]
         out.append(arg)
     return out
+
+
+def moved(path: str, tmp: Path) -> Path:
+    """Where one of MOVED lands under tmp (flattened, so data/signs and runs/signs stay apart)."""
+    return tmp / path.replace("/", "_")
 
 
 def recipe(card: dict) -> tuple[dict[str, float], dict]:
@@ -63,7 +68,7 @@ def recipe(card: dict) -> tuple[dict[str, float], dict]:
             t0 = time.perf_counter()
             subprocess.run(relocate(card[section]["command"], Path(d)), check=True, capture_output=True)
             times[step] = time.perf_counter() - t0
-        return times, eval_signs(test_set(card), Path(d) / "signs.onnx")
+        return times, eval_signs(test_set(card), moved(MOVED[-1], Path(d)))
 
 
 def test_set(card: dict) -> Path:
