@@ -26,21 +26,12 @@ from data_gen.lanes import JPEG_QUALITY, teacher_steering
 from data_gen.preview import contact_sheet, lane_overlay
 from signlane import lanes
 from signlane.config import CameraConfig
-from signlane.media import MediaError, expand, iter_video, read_image
+from signlane.media import MediaError, expand, iter_frames
 from signlane.types import LaneEstimate
 
 log = logging.getLogger(__name__)
 SHEET_MAX = 48
 MIN_MASK_PX = 30  # a kept frame must have at least this much paint labelled
-
-
-def _frames(src, every: int):
-    if src.kind == "image":
-        yield 0, read_image(src.path)
-        return
-    for i, frame in enumerate(iter_video(src.path)):
-        if i % every == 0:
-            yield i, frame
 
 
 def lane_record(sid: str, est: LaneEstimate, width: int, height: int, method: str) -> dict:
@@ -70,7 +61,7 @@ def autolabel_lanes(paths: list[str], out: str | Path, method: str = "sliding-wi
     records, kept_tiles, rejected_tiles, seen = [], [], [], 0
     for src in tqdm(sources, desc="autolabel lanes", unit="input", disable=not progress or len(sources) < 2):
         try:
-            for index, frame in _frames(src, every):
+            for index, frame in iter_frames(src, every):
                 seen += 1
                 h, w = frame.shape[:2]
                 est = lanes.get(method, camera=camera.camera(w, h))(frame)  # fresh state: frames stand alone

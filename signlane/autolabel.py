@@ -14,21 +14,12 @@ from tqdm import tqdm
 
 from signlane.draw import contact_sheet, write_image
 from signlane.fileio import atomic_write_text
-from signlane.media import MediaError, expand, iter_video, read_image
+from signlane.media import MediaError, expand, iter_frames
 from signlane.signs.classifier import DEFAULT_MODEL, SignClassifier, crop
 from signlane.signs.proposals import propose
 from signlane.world.art import SIGN_CLASSES
 
 log = logging.getLogger(__name__)
-
-
-def _frames(src, every: int):
-    if src.kind == "image":
-        yield 0, read_image(src.path)
-        return
-    for i, frame in enumerate(iter_video(src.path)):
-        if i % every == 0:
-            yield i, frame
 
 
 def autolabel_signs(paths: list[str], out: str | Path, model: str | Path | None = None, every: int = 10,
@@ -46,7 +37,7 @@ def autolabel_signs(paths: list[str], out: str | Path, model: str | Path | None 
     counts: Counter = Counter()
     for src in tqdm(sources, desc="autolabel", unit="input", disable=not progress or len(sources) < 2):
         try:
-            for index, frame in _frames(src, every):
+            for index, frame in iter_frames(src, every):
                 crops = [crop(frame, p.box) for p in propose(frame)]
                 labels = [r[0] for r in clf.classify(crops)] if clf and crops else ["unknown"] * len(crops)
                 for k, (c, label) in enumerate(zip(crops, labels)):

@@ -98,7 +98,7 @@ class Behaviour:
         self.signs = [m for m in self.signs if self._ahead(pose, m) > -self.p.instruction_range_m]
         if self.path is not None:
             return self._junction_step(pose, odo_m, speed)
-        if junction is not None and odo_m > self.cooldown_until_m and self._plan_junction(pose, odo_m, lane, junction):
+        if junction is not None and odo_m > self.cooldown_until_m and self._plan_junction(pose, lane, junction):
             return self._junction_step(pose, odo_m, speed)
         steering = self.follow.step(lane, speed)
         v, state = self._speed(t, pose, speed, lane)
@@ -155,7 +155,7 @@ class Behaviour:
                 return turn
         return sorted(exits)[0]
 
-    def _plan_junction(self, pose: OdoPose, odo_m: float, lane: LaneEstimate, j: JunctionView) -> bool:
+    def _plan_junction(self, pose: OdoPose, lane: LaneEstimate, j: JunctionView) -> bool:
         exits = self._exits(j)
         if exits is None:
             return False
@@ -184,11 +184,9 @@ class Behaviour:
         lookahead = 3.0 + 0.3 * speed
         d = np.hypot(car[:, 0], car[:, 1])
         i = ahead[np.argmin(np.abs(d[ahead] - lookahead))]
-        x, y = car[i]
-        kappa = 2.0 * x / max(x * x + y * y, 1e-6)
-        steering = math.atan(self.p.wheelbase_m * kappa) / math.radians(25.0)
+        steering = self.follow.steer_to(float(car[i, 0]), float(car[i, 1]))
         v = self.p.junction_speed if self.turn != "straight" else self.p.approach_speed
-        return float(np.clip(steering, -1, 1)), v / self.p.max_speed, f"junction-{self.turn}"
+        return steering, v / self.p.max_speed, f"junction-{self.turn}"
 
 
 def _junction_path(turn: str, y_c: float, lateral_m: float, p: BehaviourParams) -> np.ndarray:

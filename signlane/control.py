@@ -59,12 +59,13 @@ class PurePursuit:
             self.last *= 0.8  # drift back to straight while the lane is lost
             return self.last
         ld = self.lookahead + self.per_mps * max(speed, 0.0)
-        x = centre_x_at(lane, ld)
-        dist2 = x * x + ld * ld
-        kappa = 2.0 * x / dist2  # circle through the car and the target point
-        wheel = math.atan(self.wheelbase * kappa)
-        self.last = _clip(wheel / self.max_wheel)
+        self.last = self.steer_to(centre_x_at(lane, ld), ld)
         return self.last
+
+    def steer_to(self, x_m: float, y_m: float) -> float:
+        """Steering onto the circle through the car and a target point (x right, y ahead, metres)."""
+        kappa = 2.0 * x_m / max(x_m * x_m + y_m * y_m, 1e-6)
+        return _clip(math.atan(self.wheelbase * kappa) / self.max_wheel)
 
     def reset(self) -> None:
         self.last = 0.0
@@ -162,7 +163,8 @@ def make_controller(name: str = "pure-pursuit", camera: Camera | None = None):
 
 @dataclass(frozen=True)
 class ThrottlePolicy:
-    """Until the sign-aware speed planner exists: cruise while the lane is seen, else coast."""
+    """Throttle for `infer` on images and video (no odometry there): cruise while the lane is seen,
+    else coast. Closed-loop driving uses the sign-aware state machine in signlane/behaviour.py."""
 
     cruise: float = 0.5
 

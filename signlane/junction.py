@@ -18,6 +18,9 @@ import numpy as np
 from signlane.camera import BirdsEye, Camera
 
 
+_OPEN_KERNEL = np.ones((3, 3), np.uint8)  # drops single-pixel specks of look-alike colour
+
+
 @dataclass(frozen=True)
 class Opening:
     near_m: float  # ground y where the side road begins
@@ -79,7 +82,7 @@ class JunctionDetector:
         road = (d[..., 0] < p.lab_tol[0]) & (d[..., 1] < p.lab_tol[1]) & (d[..., 2] < p.lab_tol[2])
         paint = (lab[..., 0] > ref[0] + 25) & (np.abs(lab[..., 1] - 128) < 20)
         mask = ((road | paint) & self.visible).astype(np.uint8) * 255
-        return cv2.morphologyEx(mask, cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
+        return cv2.morphologyEx(mask, cv2.MORPH_OPEN, _OPEN_KERNEL)
 
     def _runs(self, frac: np.ndarray, seen: np.ndarray) -> Opening | None:
         """The nearest run of road rows (bottom = near) long enough to be a side road."""

@@ -112,6 +112,16 @@ def iter_video(path: str | Path) -> Iterator[np.ndarray]:
         cap.release()
 
 
+def iter_frames(source: Source, every: int = 1) -> Iterator[tuple[int, np.ndarray]]:
+    """(frame index, uint8 BGR) of an image source (index 0) or every `every`-th video frame."""
+    if source.kind == "image":
+        yield 0, read_image(source.path)
+        return
+    for i, frame in enumerate(iter_video(source.path)):
+        if i % every == 0:
+            yield i, frame
+
+
 def video_info(path: str | Path) -> tuple[float, int]:
     """(fps, frame count or 0 if unknown) of a video."""
     cap = cv2.VideoCapture(str(path))

@@ -108,7 +108,7 @@ def _sign_ahead(track: Track, s_m: float, label_id: int) -> dict:
 
 def test_a_lockstep_drive_completes_a_lap_of_a_ring():
     sim = Simulator(Track.from_via(RING), SimConfig(width=320, height=240, max_seconds=60))
-    with Driver(Config(signs=Config().signs.__class__(enabled=False))) as driver:
+    with Driver(Config.load(None, ["signs.enabled=false"])) as driver:
         rep = run_inprocess(sim, driver)
     assert rep["laps"] == 1 and rep["offroad_events"] == 0
     assert rep["cte_mean"] < 0.1 and rep["time_s"] < 40

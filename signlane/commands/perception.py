@@ -105,21 +105,18 @@ def add_eval(sub) -> None:
 
 
 def _run_eval(args) -> int:
-    if args.kind == "signs":
-        from signlane.evaluate import eval_signs
+    if args.kind in ("signs", "masks"):
         from signlane.onnx_model import ModelError
         try:
-            print(json.dumps(eval_signs(args.data, args.model, args.min_score), indent=1))
+            if args.kind == "signs":
+                from signlane.evaluate import eval_signs
+                result = eval_signs(args.data, args.model, args.min_score)
+            else:
+                from signlane.eval_masks import eval_masks
+                result = eval_masks(args.data, args.model, args.tol)
         except (ModelError, ValueError, OSError) as e:
             raise UserError(str(e)) from None
-        return 0
-    if args.kind == "masks":
-        from signlane.eval_masks import eval_masks
-        from signlane.onnx_model import ModelError
-        try:
-            print(json.dumps(eval_masks(args.data, args.model, args.tol), indent=1))
-        except (ModelError, ValueError, OSError) as e:
-            raise UserError(str(e)) from None
+        print(json.dumps(result, indent=1))
         return 0
     variants = ["robust", "published"] if args.variant == "both" else [args.variant]
     if args.kind == "lanes":

@@ -18,7 +18,8 @@ from signlane.world.track import Track, WorldObject
 TURN_RULES = {"left": lambda t: t == "left", "right": lambda t: t == "right", "straight": lambda t: t == "straight",
               "no_left": lambda t: t != "left", "no_right": lambda t: t != "right"}
 STOP_ZONE_M = (0.0, 12.0)  # a full stop counts when the car is this far before the sign
-STOPPED_SPEED = 0.05
+STOPPED_SPEED = 0.05  # m/s: a full stop
+STOP_HOLD_S = 2.0
 
 
 @dataclass
@@ -33,7 +34,6 @@ class StopWatch:
 class CourseLog:
     junctions: list[dict] = field(default_factory=list)
     stops: list[dict] = field(default_factory=list)
-    offroad: list[dict] = field(default_factory=list)
 
 
 def _polyline_offset(pts: np.ndarray, p: np.ndarray) -> tuple[float, float]:
@@ -161,7 +161,7 @@ class CourseTracker:
                 in_zone = STOP_ZONE_M[0] <= u <= STOP_ZONE_M[1]
                 if in_zone and speed < STOPPED_SPEED:
                     w.stopped_since = t if w.stopped_since is None else w.stopped_since
-                    if t - w.stopped_since >= 2.0:
+                    if t - w.stopped_since >= STOP_HOLD_S:
                         w.complied = True
                 else:
                     w.stopped_since = None

@@ -3,7 +3,6 @@ server this process starts, or an external server), an optional annotated video,
 files (report JSON, top-down path PNG)."""
 from __future__ import annotations
 
-import json
 import logging
 import time
 from pathlib import Path
@@ -44,10 +43,10 @@ def run_session(track: Track, sim_config: SimConfig, out: Path | None, config: C
         out.mkdir(parents=True, exist_ok=True)
         writer = VideoOut(out / "drive.mp4", sim_config.fps, (sim_config.width, sim_config.height))
 
-    def progress(s, cmd, perception=None):
+    def progress(s, cmd, perception):
         bar.n = s.course.laps
         bar.set_postfix_str(f"t={s.t:.0f}s off={s.score.offroad_events}", refresh=s.frame % 20 == 0)
-        if writer is not None and perception is not None:
+        if writer is not None:
             writer.write(annotate_drive(s.last_image, perception, cmd, s.vehicle.speed, s.t))
 
     t0 = time.perf_counter()
@@ -59,9 +58,9 @@ def run_session(track: Track, sim_config: SimConfig, out: Path | None, config: C
         elif with_driver:
             from signlane.sim.server import DriveServer, ServerOptions
             with DriveServer(config, ServerOptions(port=0, sync_signs=lockstep)) as srv:
-                rep = run_client(sim, srv.url, lockstep, lambda s, c: progress(s, c))
+                rep = run_client(sim, srv.url, lockstep, progress)
         else:
-            rep = run_client(sim, url, lockstep, lambda s, c: progress(s, c))
+            rep = run_client(sim, url, lockstep, progress)
     finally:
         bar.close()
         if writer is not None:
@@ -74,7 +73,3 @@ def run_session(track: Track, sim_config: SimConfig, out: Path | None, config: C
         atomic_write_json(out / "report.json", rep)
         write_image(out / "path.png", draw_topdown(sim.renderer.scene, path_xy=np.array(sim.path)))
     return rep
-
-
-def load_report(path: Path) -> dict:
-    return json.loads(Path(path).read_text())

@@ -3,6 +3,7 @@
 `Simulator` renders the camera view at the car's pose, sends it in VIA's telemetry format,
 applies the answer with VIA's control semantics and referees the drive (signlane/sim/course.py).
 Two ways to run it:
+Both call `progress(sim, command, perception)` after each frame (perception None when remote).
 - `run_inprocess(sim, driver)`: lockstep with a Driver object in the same process (tests, demo);
 - `run_client(sim, url, lockstep)`: as a WebSocket client of a drive server, in lockstep (waits
   for each answer: deterministic) or real time (a fixed frame rate; it never waits, and acts on
@@ -22,6 +23,7 @@ from signlane.sim.course import CourseTracker
 from signlane.sim.protocol import ProtocolError, decode_command, decode_telemetry, encode_jpeg, encode_telemetry
 from signlane.sim.score import Score
 from signlane.sim.vehicle import Vehicle, VehicleParams
+from signlane.types import Command
 from signlane.world.effects import Effects
 from signlane.world.render import Renderer
 from signlane.world.route import Pose, Route
@@ -138,8 +140,8 @@ async def _client(sim: Simulator, url: str, lockstep: bool, progress) -> dict:
                         latency = (time.perf_counter() - sent.pop(min(sent))) * 1e3
                 next_t += period
             sim.advance(*command, latency)
-            if progress is not None:
-                progress(sim, command)
+            if progress is not None:  # a remote driver's state and perception are not on the wire
+                progress(sim, Command(command[0], command[1], "remote"), None)
     return sim.report()
 
 

@@ -8,9 +8,9 @@ which is also where the camera sits.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
+from signlane.odometry import bicycle_step
 from signlane.world.route import Pose
 
 
@@ -52,11 +52,6 @@ class Vehicle:
                 self.speed = min(self.speed + p.accel * h, p.max_speed)
             else:
                 self.speed = max(self.speed - p.coast_decel * h, 0.0)
-            # midpoint heading keeps the arc exact enough at 100 Hz
-            yaw_rate = -self.speed / p.wheelbase_m * math.tan(math.radians(self.wheel_deg))
-            mid = th + 0.5 * yaw_rate * h
-            x += self.speed * math.cos(mid) * h
-            y += self.speed * math.sin(mid) * h
-            th += yaw_rate * h
+            x, y, th = bicycle_step(x, y, th, self.speed, self.wheel_deg, p.wheelbase_m, h)
             self.odometer_m += self.speed * h
         self.pose = Pose(x, y, th)
