@@ -245,13 +245,20 @@ def sprite_crop(name: str, rng: np.random.Generator, background: Sample, size: i
     match the rendered frames; uint8 (size, size, 3) BGR."""
     bg_img = background.image
     signs = [s.box for s in background.truth.signs]
-    if name == "unknown" and rng.random() < 0.4:  # plain scenery is an unknown proposal too
+    if name == "unknown" and rng.random() < 0.25:  # plain scenery is an unknown proposal too
         box = background_box(rng, bg_img.shape, signs) or (0, 0, 32, 32)
         return crop_resize(bg_img, jitter_box(box, rng), size)
     px = int(round(math.exp(rng.uniform(math.log(SPRITE_PX[0]), math.log(SPRITE_PX[1])))))
     warped = _perspective(_sprite_for(name, px, rng), rng)
+    fit = min(1.0, (bg_img.shape[1] - 1) / warped.shape[1], (bg_img.shape[0] - 1) / warped.shape[0])
+    if fit < 1.0:  # a near billboard, wider than the frame once warped: the camera sees part of it
+        warped = cv2.resize(warped, None, fx=fit, fy=fit, interpolation=cv2.INTER_AREA)
+        px = max(1, int(px * fit))
     ch, cw = warped.shape[:2]
-    spot = background_box(rng, bg_img.shape, signs, side=(max(ch, cw), max(ch, cw))) or (0, 0, cw, ch)
+    spot = background_box(rng, bg_img.shape, signs, side=(max(ch, cw), max(ch, cw))) \
+        if max(ch, cw) <= min(bg_img.shape[:2]) else None
+    if spot is None:
+        spot = (int(rng.integers(0, bg_img.shape[1] - cw + 1)), int(rng.integers(0, bg_img.shape[0] - ch + 1)))
     patch = bg_img[spot[1]:spot[1] + ch, spot[0]:spot[0] + cw].astype(np.float32)
     alpha = warped[:, :, 3:4].astype(np.float32) / 255.0
     colour = warped[:, :, :3].astype(np.float32) * rng.uniform(0.6, 1.15)  # scene lighting

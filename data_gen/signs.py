@@ -6,7 +6,8 @@ Two phases, each a pure function of (seed, index) so any worker count writes the
    and unknown crops (distractors, red/blue colour regions, background), the unknowns capped
    by a per-frame quota that sums to SCENE_UNKNOWN_SHARE of the unknown target;
 2. sprites: each class is topped up to its target with sprite renders on rendered backgrounds
-   (`s<index>.png`); how many of each follows from phase 1's counts, so it is fixed too.
+   (`s<index>.png`), and UNKNOWN_SPRITE_SHARE of the unknown target always comes from sprite
+   hard negatives; how many of each follows from phase 1's counts, so it is fixed too.
 """
 from __future__ import annotations
 
@@ -30,6 +31,10 @@ log = logging.getLogger(__name__)
 
 FRAME_SIZE = (640, 480)  # signs are 12-60 px here, as on the car's camera
 SCENE_UNKNOWN_SHARE = 0.7  # the rest of the unknowns: distractor sprites and plain background
+# frames alone often fill the unknown target with scene proposals; this share of it is always
+# added as sprite hard negatives (sign-like discs, rectangles, octagons, triangles) under the
+# sprites' wide viewpoint and camera randomisation, which frames of our own renderer never reach
+UNKNOWN_SPRITE_SHARE = 0.25
 SPRITES_PER_BG = 8  # sprites that share one background frame (rendering it is the cost)
 
 
@@ -122,6 +127,7 @@ def signs_config(n: int, seed: int, crop: int, unknown_fraction: float, frames: 
     return {"n": int(n), "seed": int(seed), "crop": int(crop), "unknown_fraction": float(unknown_fraction),
             "frames": int(frames), "sampler": asdict(sampler), "classes": list(SIGN_CLASSES),
             "targets": class_targets(n, unknown_fraction), "scene_unknown_share": SCENE_UNKNOWN_SHARE,
+            "unknown_sprite_share": UNKNOWN_SPRITE_SHARE,
             "sign_min_px": sc.SIGN_MIN_PX, "max_occluded": sc.MAX_OCCLUDED, "max_truncated": sc.MAX_TRUNCATED,
             "min_face_contrast": sc.MIN_FACE_CONTRAST,
             "pad_max": sc.PAD_MAX, "shift_max": sc.SHIFT_MAX, "sprite_px": list(sc.SPRITE_PX),
@@ -160,7 +166,9 @@ def _generate(out: Path, n: int, seed: int, crop: int, workers: int, unknown_fra
     job = FrameCropJob(str(out), frames, seed, sampler, crop, scene_unknown)
     run_indexed(frames, job, workers, desc="sign crops: frames", done_fn=job.done, chunk=sampler.frames_per_track)
     from_frames = job.counts()
-    plan = tuple(c for c in SIGN_CLASSES for _ in range(max(0, targets[c] - from_frames[c])))
+    wanted = {c: max(0, targets[c] - from_frames[c]) for c in SIGN_CLASSES}
+    wanted["unknown"] = max(wanted["unknown"], int(round(targets["unknown"] * UNKNOWN_SPRITE_SHARE)))
+    plan = tuple(c for c in SIGN_CLASSES for _ in range(wanted[c]))
     sprites = SpriteJob(str(out), seed, sampler, crop, plan, first_bg=frames)
     run_indexed(len(plan), sprites, workers, desc="sign crops: sprites", done_fn=sprites.done,
                 chunk=SPRITES_PER_BG * sampler.frames_per_track)

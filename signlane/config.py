@@ -30,6 +30,12 @@ class CameraConfig:
 class LanesConfig:
     method: str = "sliding-window"
     variant: str = "robust"  # robust | published
+    model: str = ""  # a learned method's ONNX file (segnet); "" = the shipped signlane/models/lanes.onnx
+
+    def overrides(self) -> dict:
+        """Method parameters the config sets beyond the variant's (a method without a `model`
+        parameter rejects a model with a clear error)."""
+        return {"model": self.model} if self.model else {}
 
 
 @dataclass(frozen=True)

@@ -19,7 +19,8 @@ class Pipeline:
         self._controller = None
         self._throttle = ThrottlePolicy(self.config.control.cruise)
         self.signs = None
-        lanes.params_for(self.config.lanes.method, self.config.lanes.variant)  # fail early on a bad name
+        cfg_lanes = self.config.lanes
+        lanes.params_for(cfg_lanes.method, cfg_lanes.variant, **cfg_lanes.overrides())  # fail early on a bad name
         make_controller(self.config.control.controller)
         if self.config.signs.enabled:
             from signlane.signs.stage import SignStage
@@ -36,7 +37,7 @@ class Pipeline:
             return
         cfg = self.config
         camera = cfg.camera.camera(width, height)
-        self._lane = lanes.get(cfg.lanes.method, camera=camera, variant=cfg.lanes.variant)
+        self._lane = lanes.get(cfg.lanes.method, camera=camera, variant=cfg.lanes.variant, **cfg.lanes.overrides())
         self._controller = make_controller(cfg.control.controller, camera)
         self._camera_size = (width, height)
 

@@ -125,6 +125,19 @@ def test_infer_segnet_writes_its_mask_and_survives_bad_inputs(tmp_path, capsys):
     assert mask.shape == (240, 320) and f1.summary()["f1"] > 0.8
 
 
+def test_config_picks_a_custom_segnet_model_and_rejects_one_for_a_classical_method(trained, tmp_path, capsys):
+    _, _, _, onnx_path, _ = trained
+    image = FrameSampler(3, SamplerConfig(effects="clean", randomise=False)).sample(0).image
+    cv2.imwrite(str(tmp_path / "f.png"), image)
+    args = ["infer", "--no-progress", str(tmp_path / "f.png"), "--json", "-"]
+    assert main(args + ["--lanes", "segnet", "--set", f"lanes.model={onnx_path}"]) == 0
+    assert json.loads(capsys.readouterr().out)["lane"]["method"] == "segnet"
+    assert main(args + ["--lanes", "segnet", "--set", f"lanes.model={tmp_path / 'none.onnx'}"]) == 2
+    assert main(args + ["--lanes", "canny-scan", "--set", f"lanes.model={onnx_path}"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 2 and "none.onnx" in err[0] and "not found" in err[0] and "'model'" in err[1]
+
+
 def test_shipped_model_meets_a_floor_on_a_fresh_seeded_set():
     """Floors well below the card's numbers (500+ frames) so 40 frames do not flake."""
     model = seg_model.LaneSegModel(seg_model.DEFAULT_MODEL)

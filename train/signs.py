@@ -21,10 +21,11 @@ log = logging.getLogger(__name__)
 def train_signs(data: list[str | Path], out: str | Path, epochs: int = 20, batch_size: int = 128, lr: float = 3e-3,
                 size: int = 32, val_fraction: float = 0.1, patience: int = 6, seed: int = 0, resume: bool = False,
                 scale: ScaleOut = ScaleOut(), workers: int = 0, quiet: bool = False, width: int = 16,
-                class_weights: str = "sqrt") -> dict:
+                class_weights: str = "sqrt", threads: int = 0) -> dict:
     """Train; writes checkpoints/, logs/, tensorboard/, config.json, confusion.png, errors_<class>.png.
     class_weights 'sqrt' weighs the loss by square-root inverse class frequency; 'none' weighs every
-    crop alike, so the many 'unknown' crops pull harder against taking a non-sign for a sign."""
+    crop alike, so the many 'unknown' crops pull harder against taking a non-sign for a sign.
+    threads > 0 caps torch's CPU threads (see train_lanes)."""
     if class_weights not in ("sqrt", "none"):
         raise ValueError(f"class_weights must be 'sqrt' or 'none', not {class_weights!r}")
     import lightning as L
@@ -33,7 +34,8 @@ def train_signs(data: list[str | Path], out: str | Path, epochs: int = 20, batch
     out = Path(out)
     ckpt_path = resume_path(out, resume)
     L.seed_everything(seed, workers=True)
-    torch.set_num_threads(max(1, torch.get_num_threads()))
+    if threads > 0:
+        torch.set_num_threads(threads)
     spec = replace(DEFAULT_SPEC, width=size, height=size)
     dm = SignDataModule(data, batch_size, val_fraction, spec, workers)
     dm.setup()
@@ -41,7 +43,7 @@ def train_signs(data: list[str | Path], out: str | Path, epochs: int = 20, batch
     task = SignTask(size=size, lr=lr, epochs=epochs, class_weights=weights, width=width)
     save_run_config(out, {"task": "signs", "data": [str(d) for d in data], "epochs": epochs,
                           "batch_size": batch_size, "lr": lr, "size": size, "width": width, "class_weights": class_weights,
-                          "val_fraction": val_fraction,
+                          "val_fraction": val_fraction, "workers": workers, "threads": threads,
                           "seed": seed, "train_crops": len(dm.train_items), "val_crops": len(dm.val_items),
                           "scale_out": scale.__dict__})
     trainer, ckpt = build_trainer(out, epochs, "val/acc", "max", patience, scale, quiet=quiet)

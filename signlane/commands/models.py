@@ -37,7 +37,7 @@ def add_train(sub) -> None:
     signs.add_argument("--class-weights", choices=["sqrt", "none"], default="sqrt",
                        help="loss weights: square-root inverse class frequency, or every crop alike (default sqrt)")
     signs.add_argument("--seed", type=int, default=0, help="training seed (default 0)")
-    signs.add_argument("--workers", type=int, default=0, help="data-loader worker processes (default 0)")
+    _add_cpu_args(signs, workers=1)
     signs.add_argument("--resume", action="store_true", help="continue from --out/checkpoints/last.ckpt")
     _add_scale_out(signs)
     _add_train_lanes(kinds)
@@ -60,11 +60,16 @@ def _add_train_lanes(kinds) -> None:
                        help="cross-entropy weight of the marking class (default 4)")
     lanes.add_argument("--patience", type=positive, default=5, help="early-stopping patience in epochs (default 5)")
     lanes.add_argument("--seed", type=int, default=0, help="training seed (default 0)")
-    lanes.add_argument("--workers", type=int, default=1, help="data-loader worker processes (default 1)")
-    lanes.add_argument("--threads", type=int, default=0,
-                       help="torch CPU threads (default 0 = torch's choice; 1 is fastest on a busy machine)")
+    _add_cpu_args(lanes, workers=1)
     lanes.add_argument("--resume", action="store_true", help="continue from --out/checkpoints/last.ckpt")
     _add_scale_out(lanes)
+
+
+def _add_cpu_args(p, workers: int) -> None:
+    p.add_argument("--workers", type=int, default=workers,
+                   help=f"data-loader worker processes: augmentation beside the training step (default {workers})")
+    p.add_argument("--threads", type=int, default=0,
+                   help="torch CPU threads (default 0 = torch's choice; 1 is fastest on a busy machine)")
 
 
 def _run_train(args) -> int:
@@ -80,7 +85,7 @@ def _run_train(args) -> int:
         report = train_signs(args.data, args.out, epochs=args.epochs, batch_size=args.batch_size, lr=args.lr,
                              size=args.size, patience=args.patience, seed=args.seed, resume=args.resume,
                              scale=scale, workers=args.workers, width=args.width,
-                             class_weights=args.class_weights)
+                             class_weights=args.class_weights, threads=args.threads)
     except ValueError as e:
         raise UserError(str(e)) from None
     report.pop("confusion", None)

@@ -91,7 +91,8 @@ class Driver:
         self.config = config or Config()
         dc = self.config.drive
         self.sync_signs = sync_signs
-        lanes.params_for(self.config.lanes.method, self.config.lanes.variant)  # fail early on a bad name
+        cfg_lanes = self.config.lanes
+        lanes.params_for(cfg_lanes.method, cfg_lanes.variant, **cfg_lanes.overrides())  # fail early on a bad name
         self.behaviour = Behaviour(BehaviourParams(
             max_speed=dc.max_speed, cruise_speed=dc.cruise_speed, approach_speed=dc.approach_speed,
             stop_hold_s=dc.stop_hold_s, coast_decel=dc.coast_decel, wheelbase_m=dc.wheelbase_m))
@@ -115,7 +116,7 @@ class Driver:
         self.scaled = (round(width * scale), round(height * scale))
         self.camera = cfg.camera.camera(width, height)
         small = cfg.camera.camera(*self.scaled)
-        self.lane = lanes.get(cfg.lanes.method, camera=small, variant=cfg.lanes.variant)
+        self.lane = lanes.get(cfg.lanes.method, camera=small, variant=cfg.lanes.variant, **cfg.lanes.overrides())
         self.junctions = JunctionDetector(small)
         self._size = (width, height)
 

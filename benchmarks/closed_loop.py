@@ -1,0 +1,116 @@
+"""Closed-loop driving score over many tracks: the bundled maps and N seeded procedural tracks,
+in lockstep (deterministic) and/or real time at 20 Hz through a drive server started in the same
+process (as `signlane sim --with-driver`), with the default config (shipped models).
+
+It prints one row per (track, mode), a totals row per mode, the acceptance check
+(0 off-road events, 100% stop compliance, >= 95% turn compliance, mean cross-track error <= 0.10
+lane widths) and, when both modes ran, the real-time minus lockstep difference per measure.
+
+    python benchmarks/closed_loop.py [--seeds 20] [--modes lockstep realtime] [--jobs 1] [--out DIR]
+
+Real-time rows depend on the machine's load: run them with --jobs 1 on a quiet machine.
+Lockstep rows are deterministic, so --jobs 2 only changes the wall time.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import multiprocessing as mp
+import time
+from pathlib import Path
+
+BUNDLED = ["loop_demo", "town_demo"]
+TARGET = {"offroad": 0, "stops": 1.0, "turns": 0.95, "cte_mean": 0.10}
+
+
+def _track(name: str):
+    from signlane.demo import bundled_map
+    from signlane.world.procedural import generate_map
+    from signlane.world.track import Track
+    if name.startswith("seed"):
+        return Track.from_via(generate_map(int(name[4:])))
+    return bundled_map(name)
+
+
+def _run(job: tuple[str, str, str | None]) -> dict:
+    name, mode, out = job
+    import cv2
+    cv2.setNumThreads(1)
+    from signlane.config import Config
+    from signlane.sim.session import run_session
+    from signlane.sim.simulator import SimConfig
+    lock = mode == "lockstep"
+    t0 = time.perf_counter()
+    rep = run_session(_track(name), SimConfig(), Path(out) / f"{name}-{mode}" if out else None, Config(),
+                      lockstep=lock, with_driver=not lock, show_progress=False)
+    rep["wall_s"] = round(time.perf_counter() - t0, 1)
+    rep["track"], rep["run"] = name, mode
+    return rep
+
+
+def _ratio(done: int, need: int) -> str:
+    return f"{done}/{need}"
+
+
+def _row(r: dict) -> str:
+    return (f"| {r['track']} | {r['run']} | {r['laps']} | {r['offroad_events']} | {r['cte_mean']:.3f} / "
+            f"{r['cte_max']:.3f} | {_ratio(r['stops']['complied'], r['stops']['required'])} | "
+            f"{_ratio(r['turns']['complied'], r['turns']['required'])} | {r['time_s']:.0f} | {r['fps']:.1f} | "
+            f"{r['latency_ms']['median']:.1f} / {r['latency_ms']['p99']:.1f} |")
+
+
+def totals(rows: list[dict]) -> dict:
+    stops = [sum(r["stops"][k] for r in rows) for k in ("complied", "required")]
+    turns = [sum(r["turns"][k] for r in rows) for k in ("complied", "required")]
+    time_s = sum(r["time_s"] for r in rows)
+    # cross-track mean weighted by driving time, so long tracks count for what they are
+    cte = sum(r["cte_mean"] * r["time_s"] for r in rows) / max(time_s, 1e-9)
+    out = {"tracks": len(rows), "laps": sum(r["laps"] for r in rows),
+           "offroad": sum(r["offroad_events"] for r in rows), "cte_mean": round(cte, 4),
+           "cte_max": max(r["cte_max"] for r in rows), "stops": stops, "turns": turns,
+           "time_s": round(time_s, 1), "incomplete": [r["track"] for r in rows if r["laps"] < 1]}
+    out["pass"] = (out["offroad"] == TARGET["offroad"] and not out["incomplete"]
+                   and stops[0] >= TARGET["stops"] * stops[1] and turns[0] >= TARGET["turns"] * turns[1]
+                   and cte <= TARGET["cte_mean"])
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--seeds", type=int, default=20, help="procedural tracks seed 0..N-1 (default 20)")
+    ap.add_argument("--first-seed", type=int, default=0)
+    ap.add_argument("--no-bundled", action="store_true", help="skip the bundled maps")
+    ap.add_argument("--modes", nargs="+", choices=["lockstep", "realtime"], default=["lockstep"])
+    ap.add_argument("--jobs", type=int, default=1, help="tracks driven at once (real time: keep 1)")
+    ap.add_argument("--out", type=Path, help="per-run report.json and path.png, plus summary.json")
+    a = ap.parse_args()
+    names = ([] if a.no_bundled else BUNDLED) + [f"seed{s}" for s in range(a.first_seed, a.first_seed + a.seeds)]
+    jobs = [(n, m, str(a.out) if a.out else None) for m in a.modes for n in names]
+    print("| track | mode | laps | off-road | cte mean / max | stops | turns | sim s | fps | latency ms median / p99 |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    rows = []
+    with mp.get_context("spawn").Pool(a.jobs, maxtasksperchild=1) as pool:
+        for r in pool.imap(_run, jobs):
+            rows.append(r)
+            print(_row(r), flush=True)
+    summary = {}
+    for m in a.modes:
+        t = summary[m] = totals([r for r in rows if r["run"] == m])
+        print(f"\n{m}: {t['tracks']} tracks, {t['laps']} laps, off-road {t['offroad']}, "
+              f"cte mean {t['cte_mean']:.3f} (max {t['cte_max']:.3f}), stops {_ratio(*t['stops'])}, "
+              f"turns {_ratio(*t['turns'])}, {t['time_s']:.0f} s driven -> {'PASS' if t['pass'] else 'FAIL'}"
+              + (f"; no lap on {t['incomplete']}" if t["incomplete"] else ""))
+    if {"lockstep", "realtime"} <= set(a.modes):
+        by = {(r["track"], r["run"]): r for r in rows}
+        dc = [abs(by[n, "realtime"]["cte_mean"] - by[n, "lockstep"]["cte_mean"]) for n in names]
+        dt = [abs(by[n, "realtime"]["time_s"] - by[n, "lockstep"]["time_s"]) / by[n, "lockstep"]["time_s"]
+              for n in names]
+        print(f"real time vs lockstep per track: |d cte mean| max {max(dc):.3f} lane widths, "
+              f"|d lap time| max {100 * max(dt):.1f}%")
+    if a.out:
+        a.out.mkdir(parents=True, exist_ok=True)
+        (a.out / "summary.json").write_text(json.dumps({"rows": rows, "totals": summary}, indent=1))
+
+
+if __name__ == "__main__":
+    main()
