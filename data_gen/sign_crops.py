@@ -30,6 +30,13 @@ PROPOSAL_IOU = 0.5  # a proposal matching a sign this well takes its class
 SPRITE_PX = (12, 120)  # sprite face size range (log-uniform): far signs to ones close to the camera
 YAW_MAX_DEG = 60.0  # signs seen this far off their axis still count
 OCCLUDE_PROB = 0.15
+# distractor kinds of the unknown sprites: the sign-like ones (what the classifier confuses with
+# signs) drawn more often than cones and boxes, which no colour proposal mistakes for a sign
+UNKNOWN_KIND_WEIGHTS = {"red_octagon_blank": 6, "red_disc": 2, "blue_disc": 2, "blue_rect": 2,
+                        "warning_triangle": 1, "billboard": 1, "cone": 0.5, "box": 0.5}
+# below this face size the word on a red octagon (ZONE, WAIT, GO...) is a white smudge, as STOP
+# is: such an octagon is a stop sign to anyone, so it is no fair example of "unknown" and is left out
+OCTAGON_WORD_MIN_PX = 24
 # HSV thresholds of sign paint (OpenCV hue 0..180), the same regions a colour proposal stage finds
 RED_LO = ((0, 70, 50), (10, 255, 255))
 RED_HI = ((170, 70, 50), (180, 255, 255))
@@ -135,10 +142,17 @@ def usable_sign(sign, image: np.ndarray) -> bool:
         and sign.truncated <= MAX_TRUNCATED and face_contrast(image, sign.box) >= MIN_FACE_CONTRAST
 
 
+def unreadable_octagons(sample: Sample) -> list[Box]:
+    """Boxes of the frame's red octagon distractors too small for their word to be read."""
+    return [b for kind, b in sample.truth.distractors
+            if kind == "red_octagon_blank" and min(b[2], b[3]) < OCTAGON_WORD_MIN_PX]
+
+
 def unknown_candidates(sample: Sample, rng: np.random.Generator) -> list[Box]:
     """Unknown-class boxes of a frame, interleaved by source (distractors, colour regions,
     background) so a small per-frame quota still sees every kind; none covers a sign."""
     signs = [s.box for s in sample.truth.signs]
+    signs += unreadable_octagons(sample)  # kept clear of, exactly as signs are
     distractors = [b for _, b in sample.truth.distractors
                    if min(b[2], b[3]) >= UNKNOWN_MIN_PX and not covers_sign(b, signs)]
     colour = [b for b in colour_regions(sample.image)
@@ -158,14 +172,16 @@ def proposal_labels(sample: Sample) -> list[tuple[str, Box]]:
     """The colour-mask proposals of a frame, each labelled by its overlap with the ground truth:
     IoU >= PROPOSAL_IOU with a usable sign takes that sign's class, no overlap with any sign is
     'unknown'; a proposal that touches a sign without matching it (a fragment, or a sign too
-    hidden or washed out to be an example) is left out rather than given a wrong label."""
+    hidden or washed out to be an example), or an octagon too small to read, is left out rather
+    than given a wrong label."""
     out = []
+    sign_like = [s.box for s in sample.truth.signs] + unreadable_octagons(sample)
     for prop in propose(sample.image):
         best = max(sample.truth.signs, key=lambda s: iou(prop.box, s.box), default=None)
         if best is not None and iou(prop.box, best.box) >= PROPOSAL_IOU:
             if usable_sign(best, sample.image):
                 out.append((best.label, prop.box))
-        elif not covers_sign(prop.box, [s.box for s in sample.truth.signs]):
+        elif not covers_sign(prop.box, sign_like):
             out.append(("unknown", prop.box))
     return out
 
@@ -235,7 +251,9 @@ def _camera_look(img: np.ndarray, rng: np.random.Generator) -> np.ndarray:
 
 def _sprite_for(name: str, size: int, rng: np.random.Generator) -> np.ndarray:
     if name == "unknown":
-        return draw_distractor(DISTRACTOR_KINDS[int(rng.integers(len(DISTRACTOR_KINDS)))], size, rng)
+        kinds = [k for k in DISTRACTOR_KINDS if size >= OCTAGON_WORD_MIN_PX or k != "red_octagon_blank"]
+        p = np.array([UNKNOWN_KIND_WEIGHTS[k] for k in kinds], float)
+        return draw_distractor(kinds[int(rng.choice(len(kinds), p=p / p.sum()))], size, rng)
     return draw_sign(name, size, random_style(rng, float(rng.uniform(0.2, 1.0))), rng)
 
 

@@ -34,7 +34,7 @@ SCENE_UNKNOWN_SHARE = 0.7  # the rest of the unknowns: distractor sprites and pl
 # frames alone often fill the unknown target with scene proposals; this share of it is always
 # added as sprite hard negatives (sign-like discs, rectangles, octagons, triangles) under the
 # sprites' wide viewpoint and camera randomisation, which frames of our own renderer never reach
-UNKNOWN_SPRITE_SHARE = 0.25
+UNKNOWN_SPRITE_SHARE = 0.5
 SPRITES_PER_BG = 8  # sprites that share one background frame (rendering it is the cost)
 
 
@@ -128,6 +128,7 @@ def signs_config(n: int, seed: int, crop: int, unknown_fraction: float, frames: 
             "frames": int(frames), "sampler": asdict(sampler), "classes": list(SIGN_CLASSES),
             "targets": class_targets(n, unknown_fraction), "scene_unknown_share": SCENE_UNKNOWN_SHARE,
             "unknown_sprite_share": UNKNOWN_SPRITE_SHARE,
+            "unknown_kind_weights": sc.UNKNOWN_KIND_WEIGHTS, "octagon_word_min_px": sc.OCTAGON_WORD_MIN_PX,
             "sign_min_px": sc.SIGN_MIN_PX, "max_occluded": sc.MAX_OCCLUDED, "max_truncated": sc.MAX_TRUNCATED,
             "min_face_contrast": sc.MIN_FACE_CONTRAST,
             "pad_max": sc.PAD_MAX, "shift_max": sc.SHIFT_MAX, "sprite_px": list(sc.SPRITE_PX),

@@ -4,7 +4,9 @@ Lane markings vanish at a junction, so this looks at the road surface instead. I
 view of the ground ahead, a pixel is "road" when its colour is close to the asphalt just in
 front of the car (the car is on the road, so that patch is a free, per-frame colour reference),
 or bright paint. A side opening is a run of rows where the strip beyond the road edge on that
-side is mostly road; straight-on is road beyond the far edge of the side road.
+side is mostly road and the solid edge line of that side is missing (a side road interrupts it;
+colour alone takes a grey verge, sand or dark grass for road); straight-on is road beyond the far
+edge of the side road.
 
 Ground frame: metres, x right of the car, y ahead, with the car on its lane's centre.
 """
@@ -50,6 +52,10 @@ class JunctionParams:
     road_frac: float = 0.55  # a row of the strip counts as road above this fraction
     min_open_m: float = 3.5  # shortest opening (a side road is about 7 m wide)
     lab_tol: tuple[float, float, float] = (28.0, 9.0, 9.0)
+    shadow_floor: float = 0.35  # shadowed road keeps at least this share of the reference lightness
+    edge_band_m: float = 0.7  # the edge line is looked for this far either side of where it should be
+    edge_line_max_px: int = 7  # in a 320-wide image: wider bright things (sand, a grey verge) are not a line
+    edge_contrast: float = 22.0  # L (0..255) a line stands above its surroundings
 
 
 class JunctionDetector:
@@ -62,6 +68,8 @@ class JunctionDetector:
         self.bev: BirdsEye = camera.birdseye(size, (-p.x_half_m, p.x_half_m), p.y_range_m)
         ones = np.full((camera.height, camera.width), 255, np.uint8)
         self.visible = self.bev.warp(ones, cv2.INTER_NEAREST) > 0
+        self.camera = camera
+        self._bands: dict[tuple, tuple[np.ndarray, ...]] = {}  # image rows and columns of each edge band
 
     def _col(self, x_m: float) -> int:
         p = self.p
@@ -79,16 +87,54 @@ class JunctionDetector:
         cols = slice(self._col(-0.9), self._col(0.9))
         ref = np.median(lab[rows, cols].reshape(-1, 3), axis=0)
         d = np.abs(lab - ref.astype(np.int16))
-        road = (d[..., 0] < p.lab_tol[0]) & (d[..., 1] < p.lab_tol[1]) & (d[..., 2] < p.lab_tol[2])
+        # road in shadow is darker but keeps its hue: any L down to shadow_floor of the reference
+        light = (d[..., 0] < p.lab_tol[0]) | ((lab[..., 0] < ref[0]) & (lab[..., 0] > p.shadow_floor * ref[0]))
+        road = light & (d[..., 1] < p.lab_tol[1]) & (d[..., 2] < p.lab_tol[2])
         paint = (lab[..., 0] > ref[0] + 25) & (np.abs(lab[..., 1] - 128) < 20)
         mask = ((road | paint) & self.visible).astype(np.uint8) * 255
         return cv2.morphologyEx(mask, cv2.MORPH_OPEN, _OPEN_KERNEL)
 
-    def _runs(self, frac: np.ndarray, seen: np.ndarray) -> Opening | None:
-        """The nearest run of road rows (bottom = near) long enough to be a side road."""
+    def line_response(self, image_bgr: np.ndarray) -> np.ndarray:
+        """uint8 image: how far each pixel's lightness stands above the pixels around it within a
+        line's width across (a horizontal top-hat): high on painted lines, low on wide bright areas."""
+        grey = cv2.cvtColor(image_bgr, cv2.COLOR_BGR2LAB)[..., 0]  # L lifts dark roads' lines
+        k = max(3, int(round(image_bgr.shape[1] / 320 * self.p.edge_line_max_px)) | 1)
+        return cv2.morphologyEx(grey, cv2.MORPH_TOPHAT, np.ones((1, k), np.uint8))
+
+    def edge_paint(self, response: np.ndarray, x_m: float) -> np.ndarray:
+        """bool per bird's-eye row: a line runs along ground x = x_m (within edge_band_m) at that
+        row's distance, as a solid road edge line does. Looked for in the image itself (`response`
+        from line_response), where a far line is still sharp; the bird's-eye view smears it."""
+        p = self.p
+        h, w = response.shape[:2]
+        key = (round(x_m, 2), w, h)
+        if key not in self._bands:
+            y = self._y_of_row(np.arange(self.bev.size[1]))
+            pts = [self.camera.ground_to_image(np.stack([np.full_like(y, x), y], 1))
+                   for x in (x_m - p.edge_band_m, x_m + p.edge_band_m)]
+            v = np.round(pts[0][:, 1]).astype(int)
+            u0 = np.clip(np.floor(np.minimum(pts[0][:, 0], pts[1][:, 0])), 0, w).astype(int)
+            u1 = np.clip(np.ceil(np.maximum(pts[0][:, 0], pts[1][:, 0])) + 1, 0, w).astype(int)
+            rows = np.nonzero((v >= 0) & (v < h) & (u1 > u0))[0]
+            u0, u1 = u0[rows], u1[rows]
+            # each row's band as pixel indices, short bands padded by repeating their last pixel
+            cols = np.minimum(u0[:, None] + np.arange(int((u1 - u0).max(initial=1))), u1[:, None] - 1)
+            self._bands[key] = (rows, v[rows][:, None], cols)
+        rows, v, cols = self._bands[key]
+        out = np.zeros(self.bev.size[1], bool)
+        if len(rows):
+            out[rows] = response[v, cols].max(axis=1) > p.edge_contrast
+        return out
+
+    def _runs(self, frac: np.ndarray, seen: np.ndarray, paint: np.ndarray) -> Opening | None:
+        """The nearest run of road rows (bottom = near) long enough to be a side road, along
+        which the edge line (`paint`, bool per row) is missing."""
         p = self.p
         n = len(frac)
-        is_road = frac > p.road_frac
+        # open road beside ours looks like road and has no edge line; gaps of a row or two in a
+        # line (worn paint, a speck of noise) do not open it
+        paint = cv2.morphologyEx(paint.astype(np.uint8)[:, None], cv2.MORPH_CLOSE, np.ones((5, 1), np.uint8)).ravel() > 0
+        is_road = (frac > p.road_frac) & ~paint
         row = n - 1
         while row >= 0:
             if is_road[row] and seen[row]:
@@ -97,7 +143,8 @@ class JunctionDetector:
                     top -= 1
                 near, far = float(self._y_of_row(row)), float(self._y_of_row(top))
                 closed = top > 0 and bool(seen[top - 1])
-                if far - near >= p.min_open_m or (not closed and far - near >= 1.5):
+                cut = row + 1 < n and not seen[row + 1]  # it began before the strip came into view
+                if far - near >= p.min_open_m or ((cut or not closed) and far - near >= 1.5):
                     return Opening(near, far, closed)
                 row = top - 1
             else:
@@ -111,11 +158,13 @@ class JunctionDetector:
         mask = self.road_mask(image_bgr)
         road_edges = (-1.5 * lw - 0.5, 0.5 * lw + 0.5)  # two-lane road, car in the right lane
         out = {}
-        for side, edge, sgn in (("left", road_edges[0], -1), ("right", road_edges[1], 1)):
+        lines = (-1.5 * lw, 0.5 * lw)  # where each side's solid edge line runs
+        response = self.line_response(image_bgr)
+        for side, edge, line, sgn in (("left", road_edges[0], lines[0], -1), ("right", road_edges[1], lines[1], 1)):
             a, b = sorted((edge + sgn * p.strip_m[0], edge + sgn * p.strip_m[1]))
             strip = mask[:, self._col(a):self._col(b) + 1] > 0
             seen = self.visible[:, self._col(a):self._col(b) + 1].mean(axis=1) > 0.8
-            out[side] = self._runs(strip.mean(axis=1), seen)
+            out[side] = self._runs(strip.mean(axis=1), seen, self.edge_paint(response, line))
         straight = None
         opening = out["right"] or out["left"]
         if opening is not None and opening.closed:
