@@ -7,6 +7,7 @@ It prints one row per (track, mode), a totals row per mode, the acceptance check
 lane widths) and, when both modes ran, the real-time minus lockstep difference per measure.
 
     python benchmarks/closed_loop.py [--seeds 20] [--modes lockstep realtime] [--jobs 1] [--out DIR]
+                                     [--random-looks]
 
 Real-time rows depend on the machine's load: run them with --jobs 1 on a quiet machine.
 Lockstep rows are deterministic, so --jobs 2 only changes the wall time.
@@ -32,8 +33,8 @@ def _track(name: str):
     return bundled_map(name)
 
 
-def _run(job: tuple[str, str, str | None]) -> dict:
-    name, mode, out = job
+def _run(job: tuple[str, str, str | None, bool]) -> dict:
+    name, mode, out, random_looks = job
     import cv2
     cv2.setNumThreads(1)
     from signlane.config import Config
@@ -41,7 +42,9 @@ def _run(job: tuple[str, str, str | None]) -> dict:
     from signlane.sim.simulator import SimConfig
     lock = mode == "lockstep"
     t0 = time.perf_counter()
-    rep = run_session(_track(name), SimConfig(), Path(out) / f"{name}-{mode}" if out else None, Config(),
+    looks = SimConfig(random_looks=True, looks_seed=int(name[4:]) if name.startswith("seed") else 0) \
+        if random_looks else SimConfig()
+    rep = run_session(_track(name), looks, Path(out) / f"{name}-{mode}" if out else None, Config(),
                       lockstep=lock, with_driver=not lock, show_progress=False)
     rep["wall_s"] = round(time.perf_counter() - t0, 1)
     rep["track"], rep["run"] = name, mode
@@ -82,10 +85,11 @@ def main() -> None:
     ap.add_argument("--no-bundled", action="store_true", help="skip the bundled maps")
     ap.add_argument("--modes", nargs="+", choices=["lockstep", "realtime"], default=["lockstep"])
     ap.add_argument("--jobs", type=int, default=1, help="tracks driven at once (real time: keep 1)")
+    ap.add_argument("--random-looks", action="store_true", help="randomise road and scenery colours (seeded)")
     ap.add_argument("--out", type=Path, help="per-run report.json and path.png, plus summary.json")
     a = ap.parse_args()
     names = ([] if a.no_bundled else BUNDLED) + [f"seed{s}" for s in range(a.first_seed, a.first_seed + a.seeds)]
-    jobs = [(n, m, str(a.out) if a.out else None) for m in a.modes for n in names]
+    jobs = [(n, m, str(a.out) if a.out else None, a.random_looks) for m in a.modes for n in names]
     print("| track | mode | laps | off-road | cte mean / max | stops | turns | sim s | fps | latency ms median / p99 |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     rows = []
