@@ -5,8 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from export.onnx_export import export_onnx
-from export.signs import data_hash, run_dir_of
+from export.onnx_export import data_hash, export_onnx, run_data_roots
 from signlane.lanes.seg_model import CLASSES, DEFAULT_SPEC, TASK
 from signlane.onnx_model import make_metadata
 
@@ -24,13 +23,11 @@ def export_lanes(ckpt: str | Path, out: str | Path, metrics: dict | None = None,
     except (KeyError, RuntimeError, TypeError) as e:
         raise ValueError(f"{ckpt}: not a lanes checkpoint ({type(e).__name__}: {str(e)[:120]})") from None
     spec = DEFAULT_SPEC
-    run = run_dir_of(ckpt)
-    cfg = json.loads((run / "config.json").read_text()) if (run / "config.json").exists() else {}
-    roots = cfg.get("data", [])
+    run, roots = run_data_roots(ckpt)
     if metrics is None and (run / "report.json").exists():  # the run's val scores travel with the model
         report = json.loads((run / "report.json").read_text())
         metrics = {k: v for k, v in report.items() if k.startswith("val_")}
-    meta = make_metadata(TASK, list(CLASSES), spec, data_hash(roots) if roots else "unknown", metrics or {},
+    meta = make_metadata(TASK, list(CLASSES), spec, data_hash(roots), metrics or {},
                          {"arch": f"LaneSegNet width {task.hparams.width}", "checkpoint": ckpt.name,
                           "output": json.dumps({"size": "input", "classes": list(CLASSES), "kind": "logits"})})
     report = export_onnx(task.net, (1, 3, spec.height, spec.width), out, meta, tol=tol)

@@ -2,6 +2,8 @@
 int8 quantization. Export fails loudly: a file that does not check or match torch raises."""
 from __future__ import annotations
 
+import hashlib
+import json
 import os
 import tempfile
 import warnings
@@ -14,6 +16,30 @@ import torch
 
 class ExportError(Exception):
     pass
+
+
+def run_dir_of(ckpt: Path) -> Path:
+    """The training run folder of a checkpoint (<run>/checkpoints/x.ckpt)."""
+    return ckpt.parent.parent if ckpt.parent.name == "checkpoints" else ckpt.parent
+
+
+def run_data_roots(ckpt: Path) -> tuple[Path, list[str]]:
+    """(run folder, the dataset folders its config.json lists; [] without a config)."""
+    run = run_dir_of(ckpt)
+    cfg = json.loads((run / "config.json").read_text()) if (run / "config.json").exists() else {}
+    return run, list(cfg.get("data", []))
+
+
+def data_hash(roots: list[str]) -> str:
+    """Hash of the training sets' manifests (or file lists when there is no manifest);
+    "unknown" without any."""
+    if not roots:
+        return "unknown"
+    h = hashlib.sha256()
+    for r in sorted(roots):
+        m = Path(r) / "manifest.json"
+        h.update(m.read_bytes() if m.exists() else "\n".join(sorted(p.name for p in Path(r).rglob("*.png"))).encode())
+    return h.hexdigest()[:16]
 
 
 def _session(path: str | Path):

@@ -1,31 +1,15 @@
 """`signlane export signs CKPT --out model.onnx [--int8]`: the classifier as ONNX with its contract."""
 from __future__ import annotations
 
-import hashlib
-import json
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
-from export.onnx_export import export_onnx, quantize_int8
+from export.onnx_export import data_hash, export_onnx, quantize_int8, run_data_roots
 from signlane.onnx_model import make_metadata
 from signlane.signs.classifier import DEFAULT_SPEC, TASK, SignClassifier, preprocess_crops
 from signlane.world.art import SIGN_CLASSES
-
-
-def run_dir_of(ckpt: Path) -> Path:
-    """The training run folder of a checkpoint (<run>/checkpoints/x.ckpt)."""
-    return ckpt.parent.parent if ckpt.parent.name == "checkpoints" else ckpt.parent
-
-
-def data_hash(roots: list[str]) -> str:
-    """Hash of the training sets' manifests (or file lists when there is no manifest)."""
-    h = hashlib.sha256()
-    for r in sorted(roots):
-        m = Path(r) / "manifest.json"
-        h.update(m.read_bytes() if m.exists() else "\n".join(sorted(p.name for p in Path(r).rglob("*.png"))).encode())
-    return h.hexdigest()[:16]
 
 
 def export_signs(ckpt: str | Path, out: str | Path, int8: bool = False, metrics: dict | None = None) -> dict:
@@ -37,10 +21,8 @@ def export_signs(ckpt: str | Path, out: str | Path, int8: bool = False, metrics:
     task = SignTask.load_from_checkpoint(str(ckpt), map_location="cpu").eval()
     size = int(task.hparams.size)
     spec = replace(DEFAULT_SPEC, width=size, height=size)
-    run = run_dir_of(ckpt)
-    cfg = json.loads((run / "config.json").read_text()) if (run / "config.json").exists() else {}
-    roots = cfg.get("data", [])
-    meta = make_metadata(TASK, list(SIGN_CLASSES), spec, data_hash(roots) if roots else "unknown", metrics or {},
+    _, roots = run_data_roots(ckpt)
+    meta = make_metadata(TASK, list(SIGN_CLASSES), spec, data_hash(roots), metrics or {},
                          {"arch": "SignNet", "checkpoint": ckpt.name})
     report = export_onnx(task.net, (1, 3, size, size), out, meta)
     val = _val_crops(roots, spec) if roots else None
