@@ -21,6 +21,7 @@ from signlane.camera import BirdsEye, Camera
 
 
 _OPEN_KERNEL = np.ones((3, 3), np.uint8)  # drops single-pixel specks of look-alike colour
+_LINE_GAP_KERNEL = np.ones((5, 1), np.uint8)  # bridges gaps of a row or two in an edge line
 
 
 @dataclass(frozen=True)
@@ -133,7 +134,7 @@ class JunctionDetector:
         n = len(frac)
         # open road beside ours looks like road and has no edge line; gaps of a row or two in a
         # line (worn paint, a speck of noise) do not open it
-        paint = cv2.morphologyEx(paint.astype(np.uint8)[:, None], cv2.MORPH_CLOSE, np.ones((5, 1), np.uint8)).ravel() > 0
+        paint = cv2.morphologyEx(paint.astype(np.uint8)[:, None], cv2.MORPH_CLOSE, _LINE_GAP_KERNEL).ravel() > 0
         is_road = (frac > p.road_frac) & ~paint
         row = n - 1
         while row >= 0:

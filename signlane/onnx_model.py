@@ -11,6 +11,7 @@ import json
 from dataclasses import dataclass
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 CONTRACT_VERSION = "1"
@@ -47,6 +48,27 @@ class InputSpec:
                 or len(spec.mean) != 3 or len(spec.std) != 3 or min(spec.std) <= 0:
             raise ModelError(f"{where}: metadata 'input' is not understood: {text}")
         return spec
+
+
+def prepare_input(images_bgr: list[np.ndarray], spec: InputSpec, what: str = "image") -> np.ndarray:
+    """uint8 BGR images (H, W, 3) of any size -> float32 (N, 3, spec.height, spec.width) model
+    input: resized (area when shrinking), colour order as the spec says, (x * scale - mean) / std.
+    The one place pixels become input, for every model: training, export parity and runtime."""
+    out = np.empty((len(images_bgr), 3, spec.height, spec.width), np.float32)
+    # (x * scale - mean) / std as one multiply-add per pixel
+    gain = (spec.scale / np.array(spec.std, np.float32)).reshape(3, 1, 1)
+    bias = (np.array(spec.mean, np.float32) / np.array(spec.std, np.float32)).reshape(3, 1, 1)
+    for i, f in enumerate(images_bgr):
+        if f.ndim != 3 or f.shape[2] != 3 or f.dtype != np.uint8:
+            raise ValueError(f"{what} {i}: expected uint8 (H, W, 3) BGR, got {f.dtype} {f.shape}")
+        shrink = f.shape[0] > spec.height or f.shape[1] > spec.width
+        r = cv2.resize(f, (spec.width, spec.height), interpolation=cv2.INTER_AREA if shrink else cv2.INTER_LINEAR)
+        if spec.color == "RGB":
+            r = cv2.cvtColor(r, cv2.COLOR_BGR2RGB)
+        x = out[i]
+        np.multiply(r.transpose(2, 0, 1), gain, out=x, casting="unsafe")
+        x -= bias
+    return out
 
 
 def make_metadata(task: str, classes: list[str], spec: InputSpec, data_hash: str, metrics: dict,

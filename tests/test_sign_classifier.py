@@ -36,6 +36,21 @@ def test_smoke_training_writes_its_outputs(trained):
     assert 0.0 <= report["accuracy"] <= 1.0 and set(report["recall"]) == set(SIGN_CLASSES)
 
 
+def test_train_command_runs_either_kind_and_reports_bad_data_in_one_line(trained, tmp_path, capsys):
+    from signlane.cli import main
+    root = trained[0]
+    code = main(["train", "signs", str(root / "data"), "--out", str(tmp_path / "run"), "--epochs", "1",
+                 "--batch-size", "32", "--workers", "0", "--threads", "1"])
+    out = capsys.readouterr().out
+    assert "accuracy" in json.loads(out[out.index("{\n"):])
+    assert code == 0 and (tmp_path / "run" / "checkpoints" / "last.ckpt").exists()
+    assert json.loads((tmp_path / "run" / "config.json").read_text())["threads"] == 1
+    for kind in ("signs", "lanes"):
+        assert main(["train", kind, str(tmp_path / "none"), "--out", str(tmp_path / kind)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 2 and all("none" in line for line in err)
+
+
 def test_export_matches_torch_and_carries_its_contract(trained):
     root, report, onnx_path, exported = trained
     assert exported["parity_max_abs"] <= 1e-4

@@ -73,39 +73,24 @@ def _add_cpu_args(p, workers: int) -> None:
 
 
 def _run_train(args) -> int:
-    if args.kind == "lanes":
-        return _run_train_lanes(args)
-    try:
-        from train.common import ScaleOut
-        from train.signs import train_signs
-    except ImportError as e:
-        raise UserError(f"training needs the train extra (pip install 'signlane[train]'): {e}") from None
-    scale = ScaleOut(args.accelerator, args.devices, args.num_nodes, args.strategy)
-    try:
-        report = train_signs(args.data, args.out, epochs=args.epochs, batch_size=args.batch_size, lr=args.lr,
-                             size=args.size, patience=args.patience, seed=args.seed, resume=args.resume,
-                             scale=scale, workers=args.workers, width=args.width,
-                             class_weights=args.class_weights, threads=args.threads)
-    except ValueError as e:
-        raise UserError(str(e)) from None
-    report.pop("confusion", None)
-    print(json.dumps(report, indent=1))
-    return 0
-
-
-def _run_train_lanes(args) -> int:
     try:
         from train.common import ScaleOut
         from train.lanes import train_lanes
+        from train.signs import train_signs
     except ImportError as e:
         raise UserError(f"training needs the train extra (pip install 'signlane[train]'): {e}") from None
-    scale = ScaleOut(args.accelerator, args.devices, args.num_nodes, args.strategy)
+    shared = dict(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr, width=args.width,
+                  patience=args.patience, seed=args.seed, resume=args.resume, workers=args.workers,
+                  threads=args.threads, scale=ScaleOut(args.accelerator, args.devices, args.num_nodes, args.strategy))
+    if args.kind == "lanes":
+        train, own = train_lanes, dict(pos_weight=args.pos_weight)
+    else:
+        train, own = train_signs, dict(size=args.size, class_weights=args.class_weights)
     try:
-        report = train_lanes(args.data, args.out, epochs=args.epochs, batch_size=args.batch_size, lr=args.lr,
-                             width=args.width, patience=args.patience, seed=args.seed, resume=args.resume,
-                             scale=scale, workers=args.workers, pos_weight=args.pos_weight, threads=args.threads)
+        report = train(args.data, args.out, **shared, **own)
     except ValueError as e:
         raise UserError(str(e)) from None
+    report.pop("confusion", None)  # a matrix: confusion.png shows it
     print(json.dumps(report, indent=1))
     return 0
 

@@ -13,7 +13,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from signlane.onnx_model import InputSpec, ModelError, OnnxModel
+from signlane.onnx_model import InputSpec, ModelError, OnnxModel, prepare_input
 
 TASK = "lane-segmentation"
 CLASSES = ("background", "lane_marking")
@@ -24,21 +24,7 @@ MASK_THRESHOLD = 0.5
 
 def preprocess_frames(frames_bgr: list[np.ndarray], spec: InputSpec = DEFAULT_SPEC) -> np.ndarray:
     """uint8 BGR frames (H, W, 3), any size -> float32 (N, 3, spec.height, spec.width) input."""
-    out = np.empty((len(frames_bgr), 3, spec.height, spec.width), np.float32)
-    # (x * scale - mean) / std as one multiply-add per pixel
-    gain = (spec.scale / np.array(spec.std, np.float32)).reshape(3, 1, 1)
-    bias = (np.array(spec.mean, np.float32) / np.array(spec.std, np.float32)).reshape(3, 1, 1)
-    for i, f in enumerate(frames_bgr):
-        if f.ndim != 3 or f.shape[2] != 3 or f.dtype != np.uint8:
-            raise ValueError(f"frame {i}: expected uint8 (H, W, 3) BGR, got {f.dtype} {f.shape}")
-        shrink = f.shape[0] > spec.height or f.shape[1] > spec.width
-        r = cv2.resize(f, (spec.width, spec.height), interpolation=cv2.INTER_AREA if shrink else cv2.INTER_LINEAR)
-        if spec.color == "RGB":
-            r = cv2.cvtColor(r, cv2.COLOR_BGR2RGB)
-        x = out[i]
-        np.multiply(r.transpose(2, 0, 1), gain, out=x, casting="unsafe")
-        x -= bias
-    return out
+    return prepare_input(frames_bgr, spec, "frame")
 
 
 def marking_probability(logits: np.ndarray) -> np.ndarray:

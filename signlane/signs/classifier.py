@@ -8,10 +8,9 @@ from __future__ import annotations
 from dataclasses import replace
 from pathlib import Path
 
-import cv2
 import numpy as np
 
-from signlane.onnx_model import InputSpec, ModelError, OnnxModel
+from signlane.onnx_model import InputSpec, ModelError, OnnxModel, prepare_input
 from signlane.types import SignDetection
 
 TASK = "sign-classifier"
@@ -31,18 +30,7 @@ def crop(image_bgr: np.ndarray, box: tuple[int, int, int, int]) -> np.ndarray:
 
 def preprocess_crops(crops_bgr: list[np.ndarray], spec: InputSpec = DEFAULT_SPEC) -> np.ndarray:
     """uint8 BGR crops of any size -> float32 (N, 3, spec.height, spec.width) normalised input."""
-    out = np.empty((len(crops_bgr), 3, spec.height, spec.width), np.float32)
-    mean = np.array(spec.mean, np.float32)[:, None, None]
-    std = np.array(spec.std, np.float32)[:, None, None]
-    for i, c in enumerate(crops_bgr):
-        if c.ndim != 3 or c.shape[2] != 3 or c.dtype != np.uint8:
-            raise ValueError(f"crop {i}: expected uint8 (H, W, 3) BGR, got {c.dtype} {c.shape}")
-        shrink = c.shape[0] > spec.height or c.shape[1] > spec.width
-        r = cv2.resize(c, (spec.width, spec.height), interpolation=cv2.INTER_AREA if shrink else cv2.INTER_LINEAR)
-        if spec.color == "RGB":
-            r = cv2.cvtColor(r, cv2.COLOR_BGR2RGB)
-        out[i] = (r.transpose(2, 0, 1).astype(np.float32) * spec.scale - mean) / std
-    return out
+    return prepare_input(crops_bgr, spec, "crop")
 
 
 def softmax(logits: np.ndarray) -> np.ndarray:
