@@ -5,12 +5,13 @@ Boxes are (x, y, w, h) in image pixels unless a name says xyxy. Images are uint8
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import cv2
 import numpy as np
 
 from signlane.signs.proposals import propose
-from signlane.world.art import DISTRACTOR_KINDS, draw_distractor, draw_sign, random_style
+from signlane.world.art import draw_distractor, draw_sign, random_style
 from signlane.world.render import Sample
 
 Box = tuple[int, int, int, int]
@@ -22,6 +23,11 @@ MAX_TRUNCATED = 0.5  # a sign mostly outside the frame is not a fair example of 
 # fog or blur have washed the symbol into a flat patch nobody can read (the sprites' exposure cap,
 # for frames); 12 drops about 5 % of frame signs, all of them blank or pure noise when looked at
 MIN_FACE_CONTRAST = 12.0
+# correlation a face's middle must keep with itself before the camera's effects (motion blur,
+# noise, glare, rain, JPEG), both smoothed at the scale of the symbol's strokes: below it the
+# effects have smeared the symbol into a blob nobody can read (about 8 % of frame signs; looked
+# at, nearly all of those under 0.9 are blobs and nearly all over 0.93 are readable)
+MIN_SYMBOL_SURVIVAL = 0.9
 UNKNOWN_MIN_PX = 10
 PAD_MAX = 0.25  # crops look like imperfect proposals: 0-25 % padding per side ...
 SHIFT_MAX = 0.10  # ... and the box centre off by up to 10 % of its size
@@ -31,12 +37,15 @@ SPRITE_PX = (12, 120)  # sprite face size range (log-uniform): far signs to ones
 YAW_MAX_DEG = 60.0  # signs seen this far off their axis still count
 OCCLUDE_PROB = 0.15
 # distractor kinds of the unknown sprites: the sign-like ones (what the classifier confuses with
-# signs) drawn more often than cones and boxes, which no colour proposal mistakes for a sign
-UNKNOWN_KIND_WEIGHTS = {"red_octagon_blank": 6, "red_disc": 2, "blue_disc": 2, "blue_rect": 2,
+# signs) drawn more often than cones and boxes, which no colour proposal mistakes for a sign.
+# There is no red octagon among them: a red octagon means stop to every road user whatever its
+# word, so the classifier must not learn to read the word (small or blurred, nobody can)
+UNKNOWN_KIND_WEIGHTS = {"no_entry": 3, "red_disc": 3, "blue_disc": 2.5, "blue_rect": 2.5,
                         "warning_triangle": 1, "billboard": 1, "cone": 0.5, "box": 0.5}
-# below this face size the word on a red octagon (ZONE, WAIT, GO...) is a white smudge, as STOP
-# is: such an octagon is a stop sign to anyone, so it is no fair example of "unknown" and is left out
-OCTAGON_WORD_MIN_PX = 24
+# the word on stop sprites: mostly STOP (VIA's and our renderer's), also other countries' words,
+# so that the octagon, not one word, is what the classifier learns (never blank: a blank red
+# octagon, small or blurred, would be a filled red disc, which is no sign)
+STOP_WORDS = {"STOP": 0.75, "ALTO": 0.09, "PARE": 0.08, "ARRET": 0.08}
 # HSV thresholds of sign paint (OpenCV hue 0..180), the same regions a colour proposal stage finds
 RED_LO = ((0, 70, 50), (10, 255, 255))
 RED_HI = ((170, 70, 50), (180, 255, 255))
@@ -135,24 +144,40 @@ def face_contrast(image: np.ndarray, box: Box) -> float:
     return float(hi - lo)
 
 
-def usable_sign(sign, image: np.ndarray) -> bool:
-    """A ground-truth SignTruth big, visible and legible enough in `image` (uint8 BGR, the frame
-    it was rendered in) to be an example of its class."""
+def symbol_survival(sample: Sample, box: Box) -> float:
+    """Correlation (-1..1) between the middle half of box (x, y, w, h), where a sign's symbol is,
+    in the frame before and after the camera's photometric effects, both smoothed at the scale
+    of the symbol's strokes (a little pixel noise averages out, a smeared symbol does not); 1.0 for a sample without the clean frame,
+    0.0 where the middle is flat or off the image."""
+    if sample.clean is None:
+        return 1.0
+    x, y, w, h = box
+    sigma = max(0.5, w / 32)
+    m = int(math.ceil(3 * sigma))  # margin so the smoothing sees the same pixels in both
+    hgt, wid = sample.image.shape[:2]
+    x0, y0 = max(0, x + w // 4 - m), max(0, y + h // 4 - m)
+    x1, y1 = min(wid, x + w - w // 4 + m), min(hgt, y + h - h // 4 + m)
+    if x1 - x0 <= 2 * m or y1 - y0 <= 2 * m:
+        return 0.0
+    a, b = (cv2.GaussianBlur(cv2.cvtColor(img[y0:y1, x0:x1], cv2.COLOR_BGR2GRAY).astype(np.float32), (0, 0), sigma)
+            [m:-m, m:-m].ravel() for img in (sample.clean, sample.image))
+    a, b = a - a.mean(), b - b.mean()
+    norm = float(np.sqrt((a * a).sum() * (b * b).sum()))
+    return float((a * b).sum() / norm) if norm > 0 else 0.0
+
+
+def usable_sign(sign, sample: Sample) -> bool:
+    """A ground-truth SignTruth big, visible and legible enough in `sample` (the frame it was
+    rendered in) to be an example of its class."""
     return min(sign.box[2], sign.box[3]) >= SIGN_MIN_PX and sign.occluded <= MAX_OCCLUDED \
-        and sign.truncated <= MAX_TRUNCATED and face_contrast(image, sign.box) >= MIN_FACE_CONTRAST
-
-
-def unreadable_octagons(sample: Sample) -> list[Box]:
-    """Boxes of the frame's red octagon distractors too small for their word to be read."""
-    return [b for kind, b in sample.truth.distractors
-            if kind == "red_octagon_blank" and min(b[2], b[3]) < OCTAGON_WORD_MIN_PX]
+        and sign.truncated <= MAX_TRUNCATED and face_contrast(sample.image, sign.box) >= MIN_FACE_CONTRAST \
+        and symbol_survival(sample, sign.box) >= MIN_SYMBOL_SURVIVAL
 
 
 def unknown_candidates(sample: Sample, rng: np.random.Generator) -> list[Box]:
     """Unknown-class boxes of a frame, interleaved by source (distractors, colour regions,
     background) so a small per-frame quota still sees every kind; none covers a sign."""
     signs = [s.box for s in sample.truth.signs]
-    signs += unreadable_octagons(sample)  # kept clear of, exactly as signs are
     distractors = [b for _, b in sample.truth.distractors
                    if min(b[2], b[3]) >= UNKNOWN_MIN_PX and not covers_sign(b, signs)]
     colour = [b for b in colour_regions(sample.image)
@@ -172,14 +197,13 @@ def proposal_labels(sample: Sample) -> list[tuple[str, Box]]:
     """The colour-mask proposals of a frame, each labelled by its overlap with the ground truth:
     IoU >= PROPOSAL_IOU with a usable sign takes that sign's class, no overlap with any sign is
     'unknown'; a proposal that touches a sign without matching it (a fragment, or a sign too
-    hidden or washed out to be an example), or an octagon too small to read, is left out rather
-    than given a wrong label."""
+    hidden or washed out to be an example) is left out rather than given a wrong label."""
     out = []
-    sign_like = [s.box for s in sample.truth.signs] + unreadable_octagons(sample)
+    sign_like = [s.box for s in sample.truth.signs]
     for prop in propose(sample.image):
         best = max(sample.truth.signs, key=lambda s: iou(prop.box, s.box), default=None)
         if best is not None and iou(prop.box, best.box) >= PROPOSAL_IOU:
-            if usable_sign(best, sample.image):
+            if usable_sign(best, sample):
                 out.append((best.label, prop.box))
         elif not covers_sign(prop.box, sign_like):
             out.append(("unknown", prop.box))
@@ -194,7 +218,7 @@ def frame_crops(sample: Sample, rng: np.random.Generator, unknown_quota: int,
     labelled = proposal_labels(sample)
     out = [(label, crop_resize(sample.image, (x, y, x + w, y + h), size)) for label, (x, y, w, h) in labelled]
     out += [(s.label, crop_resize(sample.image, jitter_box(s.box, rng), size))
-            for s in sample.truth.signs if usable_sign(s, sample.image)]
+            for s in sample.truth.signs if usable_sign(s, sample)]
     taken = [b for label, b in labelled if label == "unknown"]
     room = max(0, unknown_quota - len(taken))
     for box in [b for b in unknown_candidates(sample, rng) if all(iou(b, t) < 0.5 for t in taken)][:room]:
@@ -229,9 +253,11 @@ def _perspective(sprite: np.ndarray, rng: np.random.Generator) -> np.ndarray:
 
 
 def _occlude(img: np.ndarray, face: Box, rng: np.random.Generator) -> None:
-    """Cover up to a third of the face with a branch, pole or another object's colour (in place)."""
+    """Cover a band at one side of the face with a branch, pole or another object's colour (in place)."""
     x, y, w, h = face
-    ow, oh = int(w * rng.uniform(0.15, 0.6)), int(h * rng.uniform(0.15, 0.6))
+    # at most a quarter of the width from one side: covering more would hide the arrow's
+    # head or the word, and a sign nobody can read is no example of its class
+    ow, oh = int(w * rng.uniform(0.12, 0.25)), int(h * rng.uniform(0.15, 0.6))
     ox = x + (0 if rng.random() < 0.5 else w - ow)
     oy = y + int(rng.uniform(0, max(1, h - oh)))
     colour = tuple(int(v) for v in rng.integers(20, 200, 3))
@@ -251,10 +277,14 @@ def _camera_look(img: np.ndarray, rng: np.random.Generator) -> np.ndarray:
 
 def _sprite_for(name: str, size: int, rng: np.random.Generator) -> np.ndarray:
     if name == "unknown":
-        kinds = [k for k in DISTRACTOR_KINDS if size >= OCTAGON_WORD_MIN_PX or k != "red_octagon_blank"]
+        kinds = list(UNKNOWN_KIND_WEIGHTS)
         p = np.array([UNKNOWN_KIND_WEIGHTS[k] for k in kinds], float)
         return draw_distractor(kinds[int(rng.choice(len(kinds), p=p / p.sum()))], size, rng)
-    return draw_sign(name, size, random_style(rng, float(rng.uniform(0.2, 1.0))), rng)
+    style = random_style(rng, float(rng.uniform(0.2, 1.0)))
+    if name == "stop":
+        words = list(STOP_WORDS)
+        style = replace(style, stop_word=words[int(rng.choice(len(words), p=list(STOP_WORDS.values())))])
+    return draw_sign(name, size, style, rng)
 
 
 def sprite_crop(name: str, rng: np.random.Generator, background: Sample, size: int) -> np.ndarray:

@@ -32,7 +32,7 @@ log = logging.getLogger(__name__)
 FRAME_SIZE = (640, 480)  # signs are 12-60 px here, as on the car's camera
 SCENE_UNKNOWN_SHARE = 0.7  # the rest of the unknowns: distractor sprites and plain background
 # frames alone often fill the unknown target with scene proposals; this share of it is always
-# added as sprite hard negatives (sign-like discs, rectangles, octagons, triangles) under the
+# added as sprite hard negatives (sign-like discs, rectangles, triangles) under the
 # sprites' wide viewpoint and camera randomisation, which frames of our own renderer never reach
 UNKNOWN_SPRITE_SHARE = 0.5
 SPRITES_PER_BG = 8  # sprites that share one background frame (rendering it is the cost)
@@ -128,9 +128,9 @@ def signs_config(n: int, seed: int, crop: int, unknown_fraction: float, frames: 
             "frames": int(frames), "sampler": asdict(sampler), "classes": list(SIGN_CLASSES),
             "targets": class_targets(n, unknown_fraction), "scene_unknown_share": SCENE_UNKNOWN_SHARE,
             "unknown_sprite_share": UNKNOWN_SPRITE_SHARE,
-            "unknown_kind_weights": sc.UNKNOWN_KIND_WEIGHTS, "octagon_word_min_px": sc.OCTAGON_WORD_MIN_PX,
+            "unknown_kind_weights": sc.UNKNOWN_KIND_WEIGHTS, "stop_words": sc.STOP_WORDS,
             "sign_min_px": sc.SIGN_MIN_PX, "max_occluded": sc.MAX_OCCLUDED, "max_truncated": sc.MAX_TRUNCATED,
-            "min_face_contrast": sc.MIN_FACE_CONTRAST,
+            "min_face_contrast": sc.MIN_FACE_CONTRAST, "min_symbol_survival": sc.MIN_SYMBOL_SURVIVAL,
             "pad_max": sc.PAD_MAX, "shift_max": sc.SHIFT_MAX, "sprite_px": list(sc.SPRITE_PX),
             "proposal_iou": sc.PROPOSAL_IOU, "yaw_max_deg": sc.YAW_MAX_DEG, "occlude_prob": sc.OCCLUDE_PROB}
 

@@ -221,6 +221,14 @@ def test_signs_identical_with_two_workers(tmp_path: Path) -> None:
     assert tree_hashes(tmp_path / "a") == tree_hashes(tmp_path / "b")
 
 
+def test_every_world_distractor_is_an_unknown_sprite_and_no_octagon_is() -> None:
+    from data_gen.sign_crops import STOP_WORDS, UNKNOWN_KIND_WEIGHTS
+    from signlane.world.art import DISTRACTOR_KINDS
+    assert set(UNKNOWN_KIND_WEIGHTS) == set(DISTRACTOR_KINDS)  # what the car meets, the classifier met
+    assert not any("octagon" in k for k in DISTRACTOR_KINDS)  # a red octagon is a stop sign
+    assert sum(STOP_WORDS.values()) == pytest.approx(1.0) and max(STOP_WORDS, key=STOP_WORDS.get) == "STOP"
+
+
 # --------------------------------------------------------------------------- drive
 def test_drive_frames_and_video(tmp_path: Path) -> None:
     out = tmp_path / "drive"

@@ -45,20 +45,24 @@ def split_of(path: Path, val_fraction: float) -> str:
     return "val" if (h % 10000) / 10000.0 < val_fraction else "train"
 
 
-def train_augment() -> A.Compose:
+def train_augment(strength: float = 1.0) -> A.Compose:
     """Appearance far beyond the renderer's: other cameras, printers, light and weather.
-    No flips (left/right would swap) and small hue shifts (blue must stay blue, red red)."""
+    No flips (left/right would swap) and small hue shifts (blue must stay blue, red red).
+    `strength` (0..1) scales how often each change is applied: the generator's crops already
+    carry blur, noise, exposure and occlusion, and on top of them a full dose leaves some crops
+    nobody could read (labels the network can only memorise)."""
+    s = float(np.clip(strength, 0.0, 1.0))
     return A.Compose([
-        A.Affine(scale=(0.8, 1.15), translate_percent=(-0.1, 0.1), rotate=(-12, 12), shear=(-8, 8), p=0.8),
-        A.Perspective(scale=(0.02, 0.1), p=0.4),
-        A.RandomBrightnessContrast(brightness_limit=0.35, contrast_limit=0.35, p=0.8),
-        A.RandomGamma(gamma_limit=(60, 160), p=0.4),
-        A.HueSaturationValue(hue_shift_limit=8, sat_shift_limit=40, val_shift_limit=30, p=0.6),
-        A.ToGray(p=0.03),
-        A.OneOf([A.MotionBlur(blur_limit=(3, 7)), A.GaussianBlur(sigma_limit=(0.3, 1.5))], p=0.35),
-        A.GaussNoise(std_range=(0.01, 0.08), p=0.35),
-        A.CoarseDropout(num_holes_range=(1, 2), hole_height_range=(0.1, 0.3), hole_width_range=(0.1, 0.3), p=0.2),
-        A.ImageCompression(quality_range=(20, 95), p=0.4),
+        A.Affine(scale=(0.8, 1.15), translate_percent=(-0.1, 0.1), rotate=(-12, 12), shear=(-8, 8), p=0.8 * s),
+        A.Perspective(scale=(0.02, 0.1), p=0.4 * s),
+        A.RandomBrightnessContrast(brightness_limit=0.35, contrast_limit=0.35, p=0.8 * s),
+        A.RandomGamma(gamma_limit=(60, 160), p=0.4 * s),
+        A.HueSaturationValue(hue_shift_limit=8, sat_shift_limit=40, val_shift_limit=30, p=0.6 * s),
+        A.ToGray(p=0.03 * s),
+        A.OneOf([A.MotionBlur(blur_limit=(3, 7)), A.GaussianBlur(sigma_limit=(0.3, 1.5))], p=0.35 * s),
+        A.GaussNoise(std_range=(0.01, 0.08), p=0.35 * s),
+        A.CoarseDropout(num_holes_range=(1, 2), hole_height_range=(0.1, 0.3), hole_width_range=(0.1, 0.3), p=0.2 * s),
+        A.ImageCompression(quality_range=(20, 95), p=0.4 * s),
     ])
 
 
@@ -82,8 +86,9 @@ class CropDataset(Dataset):
 
 class SignDataModule(L.LightningDataModule):
     def __init__(self, roots: list[str | Path], batch_size: int = 128, val_fraction: float = 0.1,
-                 spec: InputSpec = DEFAULT_SPEC, workers: int = 0):
+                 spec: InputSpec = DEFAULT_SPEC, workers: int = 0, augment: float = 1.0):
         super().__init__()
+        self.augment = augment
         self.roots = [Path(r) for r in roots]
         self.batch_size, self.val_fraction, self.spec, self.workers = batch_size, val_fraction, spec, workers
 
@@ -104,7 +109,7 @@ class SignDataModule(L.LightningDataModule):
         return torch.tensor(w / w.mean(), dtype=torch.float32)
 
     def train_dataloader(self) -> DataLoader:
-        return DataLoader(CropDataset(self.train_items, self.spec, train_augment()), batch_size=self.batch_size,
+        return DataLoader(CropDataset(self.train_items, self.spec, train_augment(self.augment)), batch_size=self.batch_size,
                           shuffle=True, num_workers=self.workers, persistent_workers=self.workers > 0,
                           drop_last=len(self.train_items) > 2 * self.batch_size)
 

@@ -21,13 +21,16 @@ log = logging.getLogger(__name__)
 def train_signs(data: list[str | Path], out: str | Path, epochs: int = 20, batch_size: int = 128, lr: float = 3e-3,
                 size: int = 32, val_fraction: float = 0.1, patience: int = 6, seed: int = 0, resume: bool = False,
                 scale: ScaleOut = ScaleOut(), workers: int = 0, quiet: bool = False, width: int = 16,
-                class_weights: str = "sqrt", threads: int = 0) -> dict:
+                class_weights: str = "sqrt", threads: int = 0, augment: float = 1.0) -> dict:
     """Train; writes checkpoints/, logs/, tensorboard/, config.json, confusion.png, errors_<class>.png.
     class_weights 'sqrt' weighs the loss by square-root inverse class frequency; 'none' weighs every
     crop alike, so the many 'unknown' crops pull harder against taking a non-sign for a sign.
-    threads > 0 caps torch's CPU threads (see train_lanes)."""
+    threads > 0 caps torch's CPU threads (see train_lanes); augment (0..1) scales how often each
+    training augmentation is applied."""
     if class_weights not in ("sqrt", "none"):
         raise ValueError(f"class_weights must be 'sqrt' or 'none', not {class_weights!r}")
+    if not 0.0 <= augment <= 1.0:
+        raise ValueError(f"augment must be within 0..1, not {augment}")
     import lightning as L
     from dataclasses import replace
     from signlane.signs.classifier import DEFAULT_SPEC
@@ -37,12 +40,13 @@ def train_signs(data: list[str | Path], out: str | Path, epochs: int = 20, batch
     if threads > 0:
         torch.set_num_threads(threads)
     spec = replace(DEFAULT_SPEC, width=size, height=size)
-    dm = SignDataModule(data, batch_size, val_fraction, spec, workers)
+    dm = SignDataModule(data, batch_size, val_fraction, spec, workers, augment)
     dm.setup()
     weights = dm.class_weights().tolist() if class_weights == "sqrt" else None
     task = SignTask(size=size, lr=lr, epochs=epochs, class_weights=weights, width=width)
     save_run_config(out, {"task": "signs", "data": [str(d) for d in data], "epochs": epochs,
                           "batch_size": batch_size, "lr": lr, "size": size, "width": width, "class_weights": class_weights,
+                          "augment": augment,
                           "val_fraction": val_fraction, "workers": workers, "threads": threads,
                           "seed": seed, "train_crops": len(dm.train_items), "val_crops": len(dm.val_items),
                           "scale_out": scale.__dict__})

@@ -36,6 +36,9 @@ def add_train(sub) -> None:
     signs.add_argument("--patience", type=positive, default=6, help="early-stopping patience in epochs (default 6)")
     signs.add_argument("--class-weights", choices=["sqrt", "none"], default="sqrt",
                        help="loss weights: square-root inverse class frequency, or every crop alike (default sqrt)")
+    signs.add_argument("--augment", type=float, default=1.0,
+                       help="how often each training augmentation is applied, 0..1 (default 1); the generated "
+                            "crops are already widely randomised, so a lower dose can read them better")
     signs.add_argument("--seed", type=int, default=0, help="training seed (default 0)")
     _add_cpu_args(signs, workers=1)
     signs.add_argument("--resume", action="store_true", help="continue from --out/checkpoints/last.ckpt")
@@ -85,7 +88,7 @@ def _run_train(args) -> int:
     if args.kind == "lanes":
         train, own = train_lanes, dict(pos_weight=args.pos_weight)
     else:
-        train, own = train_signs, dict(size=args.size, class_weights=args.class_weights)
+        train, own = train_signs, dict(size=args.size, class_weights=args.class_weights, augment=args.augment)
     try:
         report = train(args.data, args.out, **shared, **own)
     except ValueError as e:

@@ -22,7 +22,7 @@ SIGN_CLASSES = ("unknown", "left", "no_left", "right", "no_right", "straight", "
 SIGN_NAMES = SIGN_CLASSES[1:]
 VIA_SIGN_IDS = {0: "left", 1: "no_left", 2: "right", 3: "no_right", 4: "stop", 5: "straight"}
 DISTRACTOR_KINDS = (
-    "red_disc", "blue_disc", "blue_rect", "red_octagon_blank",
+    "red_disc", "blue_disc", "blue_rect", "no_entry",
     "billboard", "warning_triangle", "cone", "box",
 )
 
@@ -49,6 +49,7 @@ class SignStyle:
     fade: float = 0.0  # 0..1 blend of all paint toward grey-white
     stroke_jitter: float = 0.0  # 0..1 random geometry variation of arrow / text
     font: int = cv2.FONT_HERSHEY_SIMPLEX
+    stop_word: str = "STOP"  # a red octagon means stop in any language (ALTO, PARE, ARRET...)
 
 
 def _hsv_jitter(bgr: BGR, rng: np.random.Generator, s: float,
@@ -252,7 +253,7 @@ def draw_sign(name: str, size: int, style: SignStyle | None = None,
         pad.poly(_octagon(), st.white)  # sets the face alpha
         pad.poly(_octagon(1 - b), st.red)
         s = (1 - b) * (1 + 0.08 * jit[0])
-        pad.text("STOP", st.font, 0.05 * jit[5:7], (1.45 * s, 0.52 * s), st.white)
+        pad.text(st.stop_word, st.font, 0.05 * jit[5:7], (1.45 * s, 0.52 * s), st.white)
     elif name.startswith("no_"):
         ring = float(np.clip(st.ring_frac, 0.02, 0.6))
         pad = _Pad(size, size, st.red)
@@ -329,13 +330,13 @@ def _blue_rect(size: int, rng: np.random.Generator, st: SignStyle) -> np.ndarray
     return pad.finish()
 
 
-def _red_octagon_blank(size: int, rng: np.random.Generator, st: SignStyle) -> np.ndarray:
-    b = st.border_frac
-    pad = _Pad(size, size, st.white if b > 0 else st.red)
-    pad.poly(_octagon(), st.white)
-    pad.poly(_octagon(1 - b), st.red)
-    word = str(rng.choice(["SLOW", "ZONE", "WAIT", "GO", "ALL WAY", "", ""]))  # never STOP
-    pad.text(word, st.font, (0, 0), (1.45 * (1 - b), 0.5 * (1 - b)), st.white)
+def _no_entry(size: int, rng: np.random.Generator, st: SignStyle) -> np.ndarray:
+    """Red disc with a white bar: a real sign outside our classes that, small or blurred, looks
+    much like a stop sign (red face, white band across the middle)."""
+    pad = _Pad(size, size, st.red)
+    pad.disc((0, 0), 1.0, st.red)
+    half_h = _u(rng, 0.12, 0.2)
+    pad.rect(-0.72, -half_h, 0.72, half_h, st.white)
     return pad.finish()
 
 
@@ -403,7 +404,7 @@ def _box(size: int, rng: np.random.Generator, st: SignStyle) -> np.ndarray:
 
 _DISTRACTORS = {
     "red_disc": _red_disc, "blue_disc": _blue_disc, "blue_rect": _blue_rect,
-    "red_octagon_blank": _red_octagon_blank, "billboard": _billboard,
+    "no_entry": _no_entry, "billboard": _billboard,
     "warning_triangle": _warning_triangle, "cone": _cone, "box": _box,
 }
 

@@ -30,6 +30,9 @@ FOG_START_M = 40.0
 class Sample:
     image: np.ndarray  # uint8 (H, W, 3) BGR
     truth: GroundTruth
+    # the same frame before the camera's photometric effects (exposure, blur, noise, glare, rain,
+    # JPEG): lets a dataset ask whether a sign's symbol survived them
+    clean: np.ndarray | None = None
 
 
 class Renderer:
@@ -59,9 +62,9 @@ class Renderer:
         nominal = camera
         camera = effects.jitter_camera(camera, rng)
         image, label, drawn = self._draw(pose, camera)
-        image = apply_effects(image, effects, rng)
+        clean, image = image, apply_effects(image, effects, rng)
         truth = compute_truth(self.scene, pose, camera, label, drawn, route, s_hint)
-        return Sample(image, replace(truth, nominal_camera=nominal))
+        return Sample(image, replace(truth, nominal_camera=nominal), clean)
 
     # --- drawing -----------------------------------------------------------------------------
     def _draw(self, pose: Pose, camera: Camera):
