@@ -57,10 +57,20 @@ class JunctionParams:
     edge_band_m: float = 0.7  # the edge line is looked for this far either side of where it should be
     edge_line_max_px: int = 7  # in a 320-wide image: wider bright things (sand, a grey verge) are not a line
     edge_contrast: float = 22.0  # L (0..255) a line stands above its surroundings
+    # the ground far out to both sides (beyond outer_m) is mostly not road, even at a crossroads
+    # (side roads fill a third of the rows at most); when more of it than this looks like road,
+    # the road's colour does not set it apart from the verge (dark grass under an overcast sky)
+    # and no opening can be judged. The look of the world changes slowly, so the share is
+    # averaged over frames (outer_memory: weight of the past): a frame or two where the verge
+    # happens to look different does not open a junction that sends the car off a bend
+    outer_m: float = 8.5
+    max_outer_road: float = 0.75
+    outer_memory: float = 0.95
 
 
 class JunctionDetector:
-    """Stateless per frame; builds its bird's-eye view once per camera."""
+    """Builds its bird's-eye view once per camera; its only memory across frames is how much of
+    the far ground has looked like road (see JunctionParams.outer_memory)."""
 
     def __init__(self, camera: Camera, params: JunctionParams | None = None):
         self.p = params or JunctionParams()
@@ -71,6 +81,7 @@ class JunctionDetector:
         self.visible = self.bev.warp(ones, cv2.INTER_NEAREST) > 0
         self.camera = camera
         self._bands: dict[tuple, tuple[np.ndarray, ...]] = {}  # image rows and columns of each edge band
+        self.outer_share: float | None = None  # running average of outer_road_share over frames
 
     def _col(self, x_m: float) -> int:
         p = self.p
@@ -127,6 +138,15 @@ class JunctionDetector:
             out[rows] = response[v, cols].max(axis=1) > p.edge_contrast
         return out
 
+    def outer_road_share(self, mask: np.ndarray) -> float:
+        """Share of the visible bird's-eye pixels beyond outer_m to either side that look like road."""
+        p = self.p
+        outer = np.zeros(self.visible.shape, bool)
+        outer[:, :self._col(-p.outer_m)] = True
+        outer[:, self._col(p.outer_m) + 1:] = True
+        outer &= self.visible
+        return float((mask[outer] > 0).mean()) if outer.any() else 0.0
+
     def _runs(self, frac: np.ndarray, seen: np.ndarray, paint: np.ndarray) -> Opening | None:
         """The nearest run of road rows (bottom = near) long enough to be a side road, along
         which the edge line (`paint`, bool per row) is missing."""
@@ -157,6 +177,11 @@ class JunctionDetector:
         p = self.p
         lw = lane_width_m or p.lane_width_m
         mask = self.road_mask(image_bgr)
+        share = self.outer_road_share(mask)
+        self.outer_share = share if self.outer_share is None else \
+            p.outer_memory * self.outer_share + (1 - p.outer_memory) * share
+        if max(share, self.outer_share) > p.max_outer_road:
+            return JunctionView(None, None, None, mask)
         road_edges = (-1.5 * lw - 0.5, 0.5 * lw + 0.5)  # two-lane road, car in the right lane
         out = {}
         lines = (-1.5 * lw, 0.5 * lw)  # where each side's solid edge line runs
