@@ -26,7 +26,7 @@ MIN_FACE_CONTRAST = 12.0
 # correlation a face's middle must keep with itself before the camera's effects (motion blur,
 # noise, glare, rain, JPEG), both smoothed at the scale of the symbol's strokes: below it the
 # effects have smeared the symbol into a blob nobody can read (about 8 % of frame signs; looked
-# at, nearly all of those under 0.9 are blobs and nearly all over 0.93 are readable)
+# at, most of those under 0.9 are blobs, with a few faint but readable signs among them)
 MIN_SYMBOL_SURVIVAL = 0.9
 UNKNOWN_MIN_PX = 10
 PAD_MAX = 0.25  # crops look like imperfect proposals: 0-25 % padding per side ...
@@ -147,8 +147,8 @@ def face_contrast(image: np.ndarray, box: Box) -> float:
 def symbol_survival(sample: Sample, box: Box) -> float:
     """Correlation (-1..1) between the middle half of box (x, y, w, h), where a sign's symbol is,
     in the frame before and after the camera's photometric effects, both smoothed at the scale
-    of the symbol's strokes (a little pixel noise averages out, a smeared symbol does not); 1.0 for a sample without the clean frame,
-    0.0 where the middle is flat or off the image."""
+    of the symbol's strokes (a little pixel noise averages out, a smeared symbol does not);
+    1.0 for a sample without the clean frame, 0.0 where the middle is flat or off the image."""
     if sample.clean is None:
         return 1.0
     x, y, w, h = box
@@ -199,13 +199,13 @@ def proposal_labels(sample: Sample) -> list[tuple[str, Box]]:
     'unknown'; a proposal that touches a sign without matching it (a fragment, or a sign too
     hidden or washed out to be an example) is left out rather than given a wrong label."""
     out = []
-    sign_like = [s.box for s in sample.truth.signs]
+    sign_boxes = [s.box for s in sample.truth.signs]
     for prop in propose(sample.image):
         best = max(sample.truth.signs, key=lambda s: iou(prop.box, s.box), default=None)
         if best is not None and iou(prop.box, best.box) >= PROPOSAL_IOU:
             if usable_sign(best, sample):
                 out.append((best.label, prop.box))
-        elif not covers_sign(prop.box, sign_like):
+        elif not covers_sign(prop.box, sign_boxes):
             out.append(("unknown", prop.box))
     return out
 

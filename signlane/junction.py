@@ -81,7 +81,14 @@ class JunctionDetector:
         self.visible = self.bev.warp(ones, cv2.INTER_NEAREST) > 0
         self.camera = camera
         self._bands: dict[tuple, tuple[np.ndarray, ...]] = {}  # image rows and columns of each edge band
+        # visible bird's-eye pixels beyond outer_m to either side (fixed per camera)
+        self._outer = self.visible.copy()
+        self._outer[:, self._col(-p.outer_m):self._col(p.outer_m) + 1] = False
         self.outer_share: float | None = None  # running average of outer_road_share over frames
+
+    def reset(self) -> None:
+        """Forget the frames seen so far (a new drive, perhaps in another world)."""
+        self.outer_share = None
 
     def _col(self, x_m: float) -> int:
         p = self.p
@@ -140,12 +147,7 @@ class JunctionDetector:
 
     def outer_road_share(self, mask: np.ndarray) -> float:
         """Share of the visible bird's-eye pixels beyond outer_m to either side that look like road."""
-        p = self.p
-        outer = np.zeros(self.visible.shape, bool)
-        outer[:, :self._col(-p.outer_m)] = True
-        outer[:, self._col(p.outer_m) + 1:] = True
-        outer &= self.visible
-        return float((mask[outer] > 0).mean()) if outer.any() else 0.0
+        return float((mask[self._outer] > 0).mean()) if self._outer.any() else 0.0
 
     def _runs(self, frac: np.ndarray, seen: np.ndarray, paint: np.ndarray) -> Opening | None:
         """The nearest run of road rows (bottom = near) long enough to be a side road, along

@@ -114,6 +114,7 @@ def junction_scores(track_seeds, randomise: bool) -> tuple[int, int, int, int]:
     det = JunctionDetector(cam)
     right = n = false = plain = 0
     for seed in track_seeds:
+        det.reset()  # another world: its looks are not the last one's
         track = Track.from_via(generate_map(seed % 5, size="medium"))
         route = Route.drive(track, 1500, random_policy(np.random.default_rng(seed)))
         renderer = Renderer(build_scene(track, seed=seed, randomise=randomise))
@@ -136,13 +137,13 @@ def junction_scores(track_seeds, randomise: bool) -> tuple[int, int, int, int]:
 def test_junction_detector_copes_with_random_looks():
     """Verges the colour of the road (sand, dark grass, grey) and shadows across it. With colour
     alone these frames gave 4/18 junctions right and 18/24 plain frames with a false opening;
-    with the edge-line cue 15/18 and 5/24; with the far-ground veto as well 7/18 and 0/24: where
+    with the edge-line cue 15/18 and 5/24; with the far-ground veto as well 6/18 and 0/24: where
     the verge cannot be told from the road no junction is judged, and a false opening (which
     sends the car straight off a bend) is worse than a missed one (the car follows its lane).
     The default looks stay perfect."""
     right, n, false, plain = junction_scores(range(4), randomise=True)
     assert n == 18 and plain == 24
-    assert right >= 6 and false == 0
+    assert right >= 5 and false == 0
     assert junction_scores(range(4), randomise=False) == (18, 18, 0, 24)
 
 

@@ -180,3 +180,25 @@ def test_augmentation_dose_zero_leaves_crops_alone_and_full_dose_changes_them(tm
     assert np.array_equal(CropDataset(items, DEFAULT_SPEC, train_augment(0.0))[0][0], plain)
     full = CropDataset(items, DEFAULT_SPEC, train_augment(1.0))
     assert sum(not np.array_equal(full[0][0], plain) for _ in range(10)) >= 8
+
+
+def test_signs_the_camera_smeared_are_not_examples_but_noisy_ones_are():
+    """The symbol-survival rule: a sign motion-blurred diagonally over 13 of its 32 px is left out
+    of the crop set, one under ordinary sensor noise and a darker exposure is kept."""
+    from types import SimpleNamespace
+    from data_gen.sign_crops import MIN_SYMBOL_SURVIVAL, symbol_survival, usable_sign
+    from signlane.world.art import draw_sign
+    from signlane.world.render import Sample
+    rng = np.random.default_rng(0)
+    clean = np.full((120, 160, 3), 90, np.uint8)
+    sprite = draw_sign("stop", 32)
+    alpha = sprite[:, :, 3:] / 255.0
+    clean[40:72, 60:92] = (sprite[:, :, :3] * alpha + clean[40:72, 60:92] * (1 - alpha)).astype(np.uint8)
+    box = (60, 40, 32, 32)
+    sign = SimpleNamespace(box=box, occluded=0.0, truncated=0.0)
+    noisy = np.clip(clean * 0.7 + rng.normal(0, 6, clean.shape), 0, 255).astype(np.uint8)
+    smeared = cv2.filter2D(clean, -1, np.eye(13, dtype=np.float32) / 13)
+    assert symbol_survival(Sample(noisy, None, clean), box) > 0.95 and usable_sign(sign, Sample(noisy, None, clean))
+    assert symbol_survival(Sample(smeared, None, clean), box) < MIN_SYMBOL_SURVIVAL
+    assert not usable_sign(sign, Sample(smeared, None, clean))
+    assert symbol_survival(Sample(noisy, None, None), box) == 1.0  # no clean frame: nothing to compare

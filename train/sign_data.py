@@ -48,10 +48,9 @@ def split_of(path: Path, val_fraction: float) -> str:
 def train_augment(strength: float = 1.0) -> A.Compose:
     """Appearance far beyond the renderer's: other cameras, printers, light and weather.
     No flips (left/right would swap) and small hue shifts (blue must stay blue, red red).
-    `strength` (0..1) scales how often each change is applied: the generator's crops already
-    carry blur, noise, exposure and occlusion, and on top of them a full dose leaves some crops
-    nobody could read (labels the network can only memorise)."""
-    s = float(np.clip(strength, 0.0, 1.0))
+    `strength` (0..1) scales how often each change is applied (the generator's crops already
+    carry blur, noise, exposure and occlusion of their own)."""
+    s = strength
     return A.Compose([
         A.Affine(scale=(0.8, 1.15), translate_percent=(-0.1, 0.1), rotate=(-12, 12), shear=(-8, 8), p=0.8 * s),
         A.Perspective(scale=(0.02, 0.1), p=0.4 * s),
@@ -109,8 +108,8 @@ class SignDataModule(L.LightningDataModule):
         return torch.tensor(w / w.mean(), dtype=torch.float32)
 
     def train_dataloader(self) -> DataLoader:
-        return DataLoader(CropDataset(self.train_items, self.spec, train_augment(self.augment)), batch_size=self.batch_size,
-                          shuffle=True, num_workers=self.workers, persistent_workers=self.workers > 0,
+        return DataLoader(CropDataset(self.train_items, self.spec, train_augment(self.augment)),
+                          batch_size=self.batch_size, shuffle=True, num_workers=self.workers, persistent_workers=self.workers > 0,
                           drop_last=len(self.train_items) > 2 * self.batch_size)
 
     def val_dataloader(self) -> DataLoader:

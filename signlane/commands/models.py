@@ -37,8 +37,8 @@ def add_train(sub) -> None:
     signs.add_argument("--class-weights", choices=["sqrt", "none"], default="sqrt",
                        help="loss weights: square-root inverse class frequency, or every crop alike (default sqrt)")
     signs.add_argument("--augment", type=float, default=1.0,
-                       help="how often each training augmentation is applied, 0..1 (default 1); the generated "
-                            "crops are already widely randomised, so a lower dose can read them better")
+                       help="how often each training augmentation is applied, 0..1 (default 1; on generated "
+                            "crops 0.5 scored no better)")
     signs.add_argument("--seed", type=int, default=0, help="training seed (default 0)")
     _add_cpu_args(signs, workers=1)
     signs.add_argument("--resume", action="store_true", help="continue from --out/checkpoints/last.ckpt")

@@ -170,6 +170,7 @@ class Driver:
     def reset(self) -> None:
         if self._size is not None:
             self.lane.reset()
+            self.junctions.reset()
         self.behaviour.reset()
         self.odometry.reset()
         if self.signs is not None:
