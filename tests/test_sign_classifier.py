@@ -153,17 +153,23 @@ def test_shipped_model_meets_a_floor_on_a_fresh_seeded_set(tmp_path):
     assert all(r >= 0.95 for label, r in scores["recall"].items() if label != "unknown")
 
 
+def _frame_with_stop(size: int) -> tuple[np.ndarray, tuple[int, int, int, int]]:
+    """A grey 160x120 frame with a stop sign of `size` px at (60, 40), and the sign's box."""
+    from signlane.world.art import draw_sign
+    frame = np.full((120, 160, 3), 90, np.uint8)
+    sprite = draw_sign("stop", size)
+    alpha = sprite[:, :, 3:] / 255.0
+    patch = frame[40:40 + size, 60:60 + size]
+    frame[40:40 + size, 60:60 + size] = (sprite[:, :, :3] * alpha + patch * (1 - alpha)).astype(np.uint8)
+    return frame, (60, 40, size, size)
+
+
 def test_washed_out_signs_are_not_examples_of_their_class():
     """A sign glare or exposure has turned into a flat patch (plus sensor noise) is left out of
     the crop set instead of teaching the classifier that blank patches are signs."""
     from data_gen.sign_crops import MIN_FACE_CONTRAST, face_contrast
-    from signlane.world.art import draw_sign
     rng = np.random.default_rng(0)
-    frame = np.full((120, 160, 3), 90, np.uint8)
-    sprite = draw_sign("stop", 40)
-    alpha = sprite[:, :, 3:] / 255.0
-    frame[40:80, 60:100] = (sprite[:, :, :3] * alpha + frame[40:80, 60:100] * (1 - alpha)).astype(np.uint8)
-    box = (60, 40, 40, 40)
+    frame, box = _frame_with_stop(40)
     assert face_contrast(frame, box) >= MIN_FACE_CONTRAST
     washed = np.clip(frame.astype(np.float32) * 10.0 + rng.normal(0, 8, frame.shape), 0, 255).astype(np.uint8)
     assert face_contrast(washed, box) < MIN_FACE_CONTRAST
@@ -187,14 +193,9 @@ def test_signs_the_camera_smeared_are_not_examples_but_noisy_ones_are():
     of the crop set, one under ordinary sensor noise and a darker exposure is kept."""
     from types import SimpleNamespace
     from data_gen.sign_crops import MIN_SYMBOL_SURVIVAL, symbol_survival, usable_sign
-    from signlane.world.art import draw_sign
     from signlane.world.render import Sample
     rng = np.random.default_rng(0)
-    clean = np.full((120, 160, 3), 90, np.uint8)
-    sprite = draw_sign("stop", 32)
-    alpha = sprite[:, :, 3:] / 255.0
-    clean[40:72, 60:92] = (sprite[:, :, :3] * alpha + clean[40:72, 60:92] * (1 - alpha)).astype(np.uint8)
-    box = (60, 40, 32, 32)
+    clean, box = _frame_with_stop(32)
     sign = SimpleNamespace(box=box, occluded=0.0, truncated=0.0)
     noisy = np.clip(clean * 0.7 + rng.normal(0, 6, clean.shape), 0, 255).astype(np.uint8)
     smeared = cv2.filter2D(clean, -1, np.eye(13, dtype=np.float32) / 13)
