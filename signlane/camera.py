@@ -156,6 +156,24 @@ class Camera:
         return self.birdseye((w, h), (-half, half), (y0, y1))
 
 
+# VIA's camera (../shared/VIA.md, section 3): 640x480, vertical field of view 60 degrees, mounted
+# 2.94 m up and pitched 10.86 degrees down on a body that rests slightly nose-down, so in effect
+# 2.9 m above the road at 11.8 degrees (horizon near row 155, the bottom row 3.3 m ahead)
+VIA_VFOV_DEG = 60.0
+VIA_HEIGHT_M = 2.9
+VIA_PITCH_DEG = 11.8
+VIA_CAMERA_FORWARD_M = 0.1  # ahead of the car's origin
+
+
+def hfov_for_vfov(vfov_deg: float, width: int, height: int) -> float:
+    return math.degrees(2 * math.atan(math.tan(math.radians(vfov_deg) / 2) * width / height))
+
+
+def via_camera(width: int = 640, height: int = 480) -> Camera:
+    """VIA's camera at a frame size (its vertical field of view is fixed, as in Unity)."""
+    return Camera(width, height, hfov_for_vfov(VIA_VFOV_DEG, width, height), VIA_HEIGHT_M, VIA_PITCH_DEG)
+
+
 @lru_cache(maxsize=64)
 def _ground_mask(camera: Camera, margin_px: float) -> np.ndarray:
     return camera._ground_mask(margin_px)

@@ -7,22 +7,11 @@ the score table.
 """
 from __future__ import annotations
 
-import json
-from importlib import resources
 from pathlib import Path
 
 from signlane.config import Config
+from signlane.world.maps import BUNDLED_MAPS, bundled_map  # noqa: F401 (re-exported)
 from signlane.world.track import Track
-
-BUNDLED_MAPS = ("loop_demo", "town_demo")
-
-
-def bundled_map(name: str = "loop_demo") -> Track:
-    """A map shipped in signlane/world/maps."""
-    if name not in BUNDLED_MAPS:
-        raise ValueError(f"no bundled map {name!r} (bundled: {', '.join(BUNDLED_MAPS)})")
-    return Track.from_via(json.loads(resources.files("signlane.world").joinpath(f"maps/{name}.json").read_text()),
-                          source=name)
 
 
 def run_demo(out: str | Path, track: Track | None = None, laps: int = 1, width: int = 640, height: int = 480,
@@ -31,8 +20,8 @@ def run_demo(out: str | Path, track: Track | None = None, laps: int = 1, width: 
     from signlane.sim.session import run_session
     from signlane.sim.simulator import SimConfig
     out = Path(out)
-    rep = run_session(track or bundled_map("town_demo"), SimConfig(width=width, height=height, laps=laps,
-                                                                   max_seconds=max_seconds),
+    rep = run_session(track or bundled_map("via_town"), SimConfig(width=width, height=height, laps=laps,
+                                                                  max_seconds=max_seconds),
                       out, config, lockstep=True, video=True)
     rep["files"] = {"video": str(out / "drive.mp4"), "path": str(out / "path.png"), "report": str(out / "report.json")}
     return rep

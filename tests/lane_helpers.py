@@ -10,17 +10,31 @@ from signlane.types import LaneEstimate
 from signlane.world.render import Renderer
 from signlane.world.route import Route
 from signlane.world.scene import build_scene
-from signlane.world.track import Track
+from signlane.world.track import RoadStyle, Track
 from signlane.world.sampling import FrameSampler, SamplerConfig
 
 LOOP = json.loads(resources.files("signlane.world").joinpath("maps/loop_demo.json").read_text())
-STRAIGHTS = (5.0, 65.0, 125.0, 185.0)  # arc lengths on straight stretches of the demo loop
 CAM = Camera()
 
 
+def stadium(n: int = 8) -> dict:
+    """A VIA map of a rectangle: n straights a side between four 2x2 quarter turns."""
+    W = H = n + 4
+    cells = [(1, 1, 2, 180), (W - 2, 1, 2, 270), (W - 2, H - 2, 2, 0), (1, H - 2, 2, 90)]
+    cells += [(c, r, 0, 90) for c in range(3, W - 3) for r in (1, H - 2)]
+    cells += [(c, r, 0, 0) for r in range(3, H - 3) for c in (1, W - 2)]
+    return {"map_name": "stadium", "map_size": {"x": W, "y": H}, "car_pos": {"x": 1, "y": 3},
+            "cell_datas": [{"id_inmap": r * W + c, "tile_id": t, "rot": rot} for c, r, t, rot in cells]}
+
+
+# arc lengths with 40 m or more of straight road ahead on the painted stadium (96 m sides)
+STRAIGHTS = (5.0, 105.0, 205.0, 305.0)
+
+
 def loop_scene() -> tuple[Route, Renderer]:
-    track = Track.from_via(LOOP)
-    return Route.loop(track), Renderer(build_scene(track, seed=3))
+    """Long straights in the painted two-lane style (these methods look for lane paint)."""
+    track = Track.from_via(stadium(), style=RoadStyle())
+    return Route.loop(track), Renderer(build_scene(track, seed=2))
 
 
 def run_method(method: str, image, camera=CAM, variant: str = "robust") -> LaneEstimate:

@@ -62,7 +62,7 @@ def test_heading_sign_follows_the_heading_offset(method, lane_loop, s):
 @METHODS
 def test_debug_mask_marks_the_paint(method, lane_loop):
     route, renderer = lane_loop
-    smp = renderer.render_on_route(route, 125.0, CAM)
+    smp = renderer.render_on_route(route, 205.0, CAM)
     mask = run(method, smp.image).debug_mask
     assert mask.dtype == np.uint8 and mask.shape == smp.image.shape[:2] and set(np.unique(mask)) <= {0, 255}
     paint = cv2.dilate(smp.truth.marking_mask, np.ones((5, 5), np.uint8)) > 0

@@ -31,7 +31,7 @@ def test_nothing_credible_is_not_a_lane():
 
 def test_gray_and_tiny_images(lane_loop):
     route, renderer = lane_loop
-    smp = renderer.render_on_route(route, 65.0, CAM, lateral_m=0.5)
+    smp = renderer.render_on_route(route, 105.0, CAM, lateral_m=0.5)
     gray = cv2.cvtColor(smp.image, cv2.COLOR_BGR2GRAY)
     for img in (gray, cv2.cvtColor(gray, cv2.COLOR_GRAY2BGR)):
         est = run(img)
@@ -47,7 +47,7 @@ def test_published_variant_is_the_source_and_scans_one_row(lane_loop):
     assert (p.blur_px, p.canny_low, p.canny_high, p.scan_row_frac, p.top_row_frac) == (11, 150.0, 200.0, 0.9, 0.4)
     route, renderer = lane_loop
     for lateral in (0.8, -0.8):
-        smp = renderer.render_on_route(route, 125.0, CAM, lateral_m=lateral)
+        smp = renderer.render_on_route(route, 205.0, CAM, lateral_m=lateral)
         est = run(smp.image, variant="published")
         assert isinstance(est, LaneEstimate) and est.method == METHOD
         assert est.found and np.sign(est.offset) == np.sign(lateral) and abs(est.offset - smp.truth.offset) < 0.1
@@ -68,7 +68,7 @@ def test_published_birdseye_comes_from_the_camera():
 
 def test_state_learns_the_lane_width_and_modes_are_checked(lane_loop):
     route, renderer = lane_loop
-    smp = renderer.render_on_route(route, 125.0, CAM)
+    smp = renderer.render_on_route(route, 205.0, CAM)
     est, state = canny_scan(smp.image, CAM, CannyScanParams(), None)
     assert isinstance(state, CannyScanState) and abs(state.lane_width_m - 3.2) < 0.3
     with pytest.raises(ValueError, match="mode"):

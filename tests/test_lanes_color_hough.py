@@ -27,7 +27,7 @@ def test_nothing_credible_is_not_a_lane():
 
 def test_gray_and_tiny_images(lane_loop):
     route, renderer = lane_loop
-    smp = renderer.render_on_route(route, 65.0, CAM, lateral_m=0.5)
+    smp = renderer.render_on_route(route, 105.0, CAM, lateral_m=0.5)
     gray = cv2.cvtColor(smp.image, cv2.COLOR_BGR2GRAY)
     for img in (gray, cv2.cvtColor(gray, cv2.COLOR_GRAY2BGR)):  # white paint needs no colour
         est = run(img)
@@ -44,7 +44,7 @@ def test_published_variant_is_the_source_and_runs(lane_loop):
     assert (p.canny_low, p.canny_high, p.hough_threshold, p.min_line_length, p.max_line_gap) == (200, 400, 10, 8, 8)
     route, renderer = lane_loop
     for heading in (0.1, -0.1):
-        smp = renderer.render_on_route(route, 65.0, CAM, heading_offset=heading)
+        smp = renderer.render_on_route(route, 105.0, CAM, heading_offset=heading)
         est = run(smp.image, variant="published")
         assert isinstance(est, LaneEstimate) and est.method == METHOD and est.found
         assert np.sign(est.heading) == np.sign(heading) and abs(est.offset - smp.truth.offset) < 0.1
@@ -75,7 +75,7 @@ def test_run_centres_thin_each_run_to_one_pixel():
 
 def test_state_learns_the_lane_width_and_modes_are_checked(lane_loop):
     route, renderer = lane_loop
-    smp = renderer.render_on_route(route, 125.0, CAM)
+    smp = renderer.render_on_route(route, 205.0, CAM)
     est, state = color_hough(smp.image, CAM, ColorHoughParams(), None)
     assert isinstance(state, ColorHoughState) and abs(state.lane_width_m - 3.2) < 0.3
     with pytest.raises(ValueError, match="mode"):

@@ -77,7 +77,7 @@ def test_steering_turns_back_towards_the_lane_centre():
     with DriveServer(options=ServerOptions(port=0)) as srv:
         for lateral, sign in ((0.9, -1), (-0.9, 1)):  # right of centre -> steer left (negative), and back
             with connect(srv.url) as ws:
-                img = renderer.render_on_route(route, 65.0, cam, lateral_m=lateral).image
+                img = renderer.render_on_route(route, 105.0, cam, lateral_m=lateral).image
                 cmd = ask(ws, tel(img))
                 assert_command(cmd)
                 assert cmd["steering"] * sign > 0.05, (lateral, cmd)

@@ -14,8 +14,13 @@ def add_sim(sub) -> None:
                                    "25 degrees, throttle a target speed fraction) and scores the drive: laps, "
                                    "autonomy, off-road events, cross-track error, stop and turn compliance.")
     where = p.add_mutually_exclusive_group()
-    where.add_argument("--map", type=Path, help="a VIA map JSON file (default: the bundled loop_demo)")
-    where.add_argument("--track", choices=["random"], help="a seeded procedural track with junctions and signs")
+    where.add_argument("--map", type=Path, help="a VIA map JSON file, as VIA's editor writes them "
+                                                "(default: the bundled via_town)")
+    where.add_argument("--track", help="a bundled map (via_town, loop_demo) or 'random': a seeded procedural "
+                                       "track with junctions and signs (see --seed)")
+    p.add_argument("--style", choices=["via", "painted"], default="via",
+                   help="how roads look: via = VIA's own (one 4 m carriageway between white kerbs, no paint; "
+                        "default), painted = two painted lanes on wider cells")
     p.add_argument("--seed", type=int, default=0, help="procedural track seed (default 0)")
     p.add_argument("--url", default="ws://127.0.0.1:4567", help="drive server to connect to (default %(default)s)")
     p.add_argument("--with-driver", action="store_true",
@@ -41,15 +46,12 @@ def add_sim(sub) -> None:
     p.set_defaults(func=_run_sim)
 
 
-def load_track(map_path: Path | None, random: bool, seed: int):
-    from signlane.demo import bundled_map
-    from signlane.world.procedural import generate_map
-    from signlane.world.track import MapError, Track
+def track_arg(spec, style: str, seed: int):
+    """The track a command names (bundled, random or a file), or one UserError line."""
+    from signlane.world.maps import load_track
     try:
-        if random:
-            return Track.from_via(generate_map(seed))
-        return Track.load(map_path) if map_path else bundled_map()
-    except MapError as e:
+        return load_track(spec, style, seed)
+    except ValueError as e:  # MapError included
         raise UserError(str(e)) from None
 
 
@@ -58,7 +60,7 @@ def _run_sim(args) -> int:
     from signlane.sim.score import format_report
     from signlane.sim.session import run_session
     from signlane.sim.simulator import SimConfig
-    track = load_track(args.map, args.track == "random", args.seed)
+    track = track_arg(args.map or args.track or "via_town", args.style, args.seed)
     sets = list(args.set) + ([f"lanes.method={args.lanes}"] if args.lanes else [])
     sets += ["signs.enabled=false"] if args.no_signs else []
     try:

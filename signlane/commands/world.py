@@ -79,12 +79,14 @@ def _gen(args) -> int:
 def add_demo(sub) -> None:
     p = sub.add_parser("demo", help="a closed-loop drive in the local simulator: video, path and score",
                        description="Drive the car closed-loop in the local simulator on a bundled map with signs "
-                                   "(default town_demo), in lockstep, with signlane's driver and the shipped "
+                                   "(default via_town, in VIA's look), in lockstep, with signlane's driver and the shipped "
                                    "models: writes drive.mp4 (what the driver saw and did), path.png (the driven "
                                    "path from above), report.json, and prints the score table.")
     p.add_argument("--out", type=Path, default=Path("out/demo"), help="output folder (default out/demo)")
-    p.add_argument("--track", default="town_demo",
-                   help="a bundled map (town_demo, loop_demo), 'random' (procedural, see --seed) or a VIA map JSON file")
+    p.add_argument("--track", default="via_town",
+                   help="a bundled map (via_town, loop_demo), 'random' (procedural, see --seed) or a VIA map JSON file")
+    p.add_argument("--style", choices=["via", "painted"], default="via",
+                   help="how roads look: VIA's kerbed carriageway (default) or painted lanes")
     p.add_argument("--seed", type=int, default=0, help="seed of a random track (default 0)")
     p.add_argument("--laps", type=positive, default=1, help="laps to drive (default 1)")
     p.add_argument("--size", type=size_arg, default=(640, 480), help="frame size WxH (default 640x480)")
@@ -93,20 +95,14 @@ def add_demo(sub) -> None:
 
 
 def _run_demo(args) -> int:
+    from signlane.commands.sim import track_arg
     from signlane.config import Config
-    from signlane.demo import BUNDLED_MAPS, bundled_map, run_demo
+    from signlane.demo import run_demo
     from signlane.sim.score import format_report
-    from signlane.world.procedural import generate_map
-    from signlane.world.track import MapError, Track
+    track = track_arg(args.track, args.style, args.seed)
     try:
-        if args.track in BUNDLED_MAPS:
-            track = bundled_map(args.track)
-        elif args.track == "random":
-            track = Track.from_via(generate_map(args.seed))
-        else:
-            track = Track.load(args.track)
         config = Config.load(None, [f"lanes.method={args.lanes}"] if args.lanes else [])
-    except (MapError, ValueError) as e:
+    except ValueError as e:
         raise UserError(str(e)) from None
     rep = run_demo(args.out, track=track, laps=args.laps, width=args.size[0], height=args.size[1], config=config)
     print(format_report(rep))
@@ -118,44 +114,54 @@ def _run_demo(args) -> int:
 # --- map ---------------------------------------------------------------------------------------
 def add_map(sub) -> None:
     p = sub.add_parser("map", help="check a VIA map file, or make a procedural one; draw it from above",
-                       description="Load a VIA map JSON (or generate a seeded procedural map), check that every "
-                                   "road connects, print a summary and optionally write a top-down PNG and "
-                                   "the map JSON.")
+                       description="Load a VIA map JSON as VIA's editor writes it (or generate a seeded procedural "
+                                   "map in the same format), report what VIA would draw oddly (dead ends, unknown "
+                                   "tiles, overlaps), print a summary and optionally write a top-down PNG drawn the "
+                                   "way VIA's minimap is (25 pixels a cell, north up) and the map JSON.")
     src = p.add_mutually_exclusive_group(required=True)
     src.add_argument("file", nargs="?", type=Path, help="VIA map JSON file")
     src.add_argument("--random", type=int, metavar="SEED", help="generate a procedural map with this seed")
     p.add_argument("--size", choices=["small", "medium", "large"], default="medium",
                    help="procedural map size (default medium)")
-    p.add_argument("--png", type=Path, help="write a top-down picture here")
+    p.add_argument("--style", choices=["via", "painted"], default="via",
+                   help="road style to draw (default via: VIA's kerbed carriageway)")
+    p.add_argument("--png", type=Path, help="write a top-down picture here (with the lap from the start in red)")
     p.add_argument("--save", type=Path, help="write the map JSON here (for --random)")
     p.set_defaults(func=_run_map)
 
 
 def _run_map(args) -> int:
+    from signlane.draw import write_image
+    from signlane.fileio import atomic_write_json
     from signlane.world.procedural import generate_map
     from signlane.world.route import Route
     from signlane.world.scene import build_scene
     from signlane.world.topdown import draw_topdown
-    from signlane.world.track import MapError, Track
-    from signlane.draw import write_image
+    from signlane.world.track import MapError, RoadStyle, Track, read_map
+    style = RoadStyle.named(args.style)
     try:
         if args.file is not None:
-            track = Track.load(args.file)
+            track = Track.from_via(read_map(args.file), style=style, source=str(args.file))
             data = None
         else:
             data = generate_map(args.random, size=args.size)
-            track = Track.from_via(data)
+            track = Track.from_via(data, style=style)
     except MapError as e:
         raise UserError(str(e)) from None
     kinds: dict[str, int] = {}
     for t in track.tiles:
         kinds[t.name] = kinds.get(t.name, 0) + 1
-    lap = Route.loop(track)
+    try:
+        lap = Route.loop(track)
+        lap_m, path = round(lap.length, 1), lap.lane
+    except RuntimeError as e:  # no loop from the start (a dead end first): still a map VIA draws
+        lap_m, path = str(e), None
     print(json.dumps({"name": track.name, "grid": [track.cols, track.rows], "tiles": kinds,
-                      "signs": [s.kind for s in track.signs], "lap_m": round(lap.length, 1)}))
+                      "signs": [s.kind for s in track.signs], "dead_ends": len(track.dead_ends),
+                      "lap_m": lap_m, "warnings": track.warnings}))
     if args.png:
-        write_image(args.png, draw_topdown(build_scene(track), path_xy=lap.lane))
+        write_image(args.png, draw_topdown(build_scene(track), path_xy=path))
     if args.save and data is not None:
-        args.save.parent.mkdir(parents=True, exist_ok=True)
-        args.save.write_text(json.dumps(data, indent=1))
+        atomic_write_json(args.save, data)
     return 0
+

@@ -20,6 +20,8 @@ TURN_RULES = {"left": lambda t: t == "left", "right": lambda t: t == "right", "s
 STOP_ZONE_M = (0.0, 12.0)  # a full stop counts when the car is this far before the sign
 STOPPED_SPEED = 0.05  # m/s: a full stop
 STOP_HOLD_S = 2.0
+APPROACH_M = 24.0  # a sign up to this far before a junction's edge is for that junction
+BESIDE_M = 7.0  # signs stand up to this far beyond the road's edge (VIA's editor: 1.6-4.5 m)
 
 
 @dataclass
@@ -60,11 +62,11 @@ class CourseTracker:
         self.laps = 0
         self.offroad = False
         self._lanes: dict = {}
+        self._left_by: tuple | None = None
 
     # --- geometry -------------------------------------------------------------------------
     def cell_of(self, x: float, y: float) -> tuple[int, int]:
-        return (int(round(x / self.track.cell_m + self.track.cols / 2)),
-                int(round(-y / self.track.cell_m + self.track.rows / 2)))
+        return self.track.cell_of(x, y)
 
     def lane_path(self, tile: Tile, entry: Port, exit_port: Port) -> np.ndarray:
         key = (tile.index, entry, exit_port)
@@ -99,24 +101,27 @@ class CourseTracker:
 
     # --- signs ------------------------------------------------------------------------------
     def _approach_signs(self) -> dict[tuple[int, str], str]:
-        """(junction tile, entry side) -> the turn sign standing on that approach."""
+        """(junction tile, entry side) -> the turn sign standing on that approach: facing its
+        traffic, beside the road, between the junction's centre and APPROACH_M before its edge."""
         out = {}
-        cm = self.track.cell_m
+        reach = self.track.style.road_half_width + self.track.style.kerb_m + BESIDE_M
         for tile in self.track.tiles:
             if not tile.junction:
                 continue
+            centre = self.track.cell_centre((tile.col, tile.row))
             for port in tile.ports:
-                su, sv = SIDES[port.side]
-                edge = self.track.map_to_world(np.array([[port.cell[0] - self.track.cols / 2 + su * 0.5,
-                                                          port.cell[1] - self.track.rows / 2 + sv * 0.5]]))[0]
-                inward = -np.array([su, -sv], float)  # world direction of travel into the tile
+                side = np.array(SIDES[port.side], float)
+                edge = self.track.cell_centre(port.cell) + 0.5 * side * self.track.cell_m
+                inward = -side  # travel direction into the tile
+                arm = float((edge - centre) @ side)
                 for s in self.track.signs:
                     if s.kind not in TURN_RULES:
                         continue
                     rel = np.array([s.x, s.y]) - edge
-                    back = -float(rel @ inward)
+                    back = -float(rel @ inward)  # metres before the edge
                     facing = np.array([math.cos(s.facing), math.sin(s.facing)])
-                    if 0 < back < 2.5 * cm and abs(float(rel @ [inward[1], -inward[0]])) < cm and facing @ inward < -0.5:
+                    if -arm < back < APPROACH_M and abs(float(rel @ [inward[1], -inward[0]])) < reach \
+                            and facing @ inward < -0.5:
                         out[(tile.index, port.side)] = s.kind
         return out
 
@@ -134,13 +139,20 @@ class CourseTracker:
         if not ports:
             return  # off the road network or cutting a corner: stay until it enters a neighbour
         exit_port = ports[0]
+        nxt = self.track.next_tile(self.tile, exit_port)
+        if nxt is None and self._left_by == (self.tile.index, exit_port):
+            return  # already logged: the car is past the end of the road
+        self._left_by = (self.tile.index, exit_port)
         if self.tile.junction:
             turn = self.track.turn_of(self.entry, exit_port)
             sign = self.approach_signs.get((self.tile.index, self.entry.side))
-            ok = TURN_RULES[sign](turn) if sign else None
+            dead = not self.track.leads_on(self.tile, exit_port)
+            ok = (TURN_RULES[sign](turn) if sign else None) if not dead else False
             self.log.junctions.append({"t": round(t, 2), "cell": [self.tile.col, self.tile.row], "turn": turn,
-                                       "sign": sign, "complied": ok})
-        self.tile, self.entry = self.track.next_tile(self.tile, exit_port)
+                                       "sign": sign, "complied": ok, "dead_end": dead})
+        if nxt is None:
+            return  # the road ends here: the car leaves it (an off-road event follows)
+        self.tile, self.entry = nxt
         state = (self.tile.index, self.entry.side)
         if state in self.visited:
             self.laps += 1
@@ -155,7 +167,8 @@ class CourseTracker:
             rel = np.array([x - s.x, y - s.y])
             u = float(rel @ facing)  # metres in front of the sign's face
             lateral = abs(float(rel @ [facing[1], -facing[0]]))
-            approaching = facing @ fwd < -0.5 and lateral < 0.8 * self.track.cell_m
+            near = lateral < self.track.style.road_half_width + self.track.style.kerb_m + BESIDE_M
+            approaching = facing @ fwd < -0.5 and near
             if approaching and 0 < u < 30:
                 w.active = True
                 in_zone = STOP_ZONE_M[0] <= u <= STOP_ZONE_M[1]
@@ -165,7 +178,7 @@ class CourseTracker:
                         w.complied = True
                 else:
                     w.stopped_since = None
-            elif w.active and u <= 0 and lateral < 0.8 * self.track.cell_m:
+            elif w.active and u <= 0 and near:
                 self.log.stops.append({"t": round(t, 2), "sign": [round(s.x, 2), round(s.y, 2)],
                                        "complied": w.complied})
                 w.active, w.complied, w.stopped_since = False, False, None

@@ -4,12 +4,15 @@ from __future__ import annotations
 import numpy as np
 
 INTERVENTION_S = 6.0  # PilotNet: each intervention costs 6 seconds of autonomy
-OFFROAD_MARGIN_M = 0.5  # off the lane: the car's centre this far beyond the lane's edge
 
 
 class Score:
-    def __init__(self, lane_width_m: float):
+    """`offroad_m`: the cross-track error at which the car is off its road (RoadStyle.offroad_m:
+    on VIA's kerbed road its centre over the kerb; on a painted road 0.5 m beyond its lane)."""
+
+    def __init__(self, lane_width_m: float, offroad_m: float):
         self.lane_w = lane_width_m
+        self.offroad_m = offroad_m
         self.cte: list[float] = []
         self.speeds: list[float] = []
         self.latency: list[float] = []
@@ -22,14 +25,14 @@ class Score:
         self.speeds.append(speed)
         if latency_ms is not None:
             self.latency.append(latency_ms)
-        if abs(cte_m) > self.lane_w / 2 + OFFROAD_MARGIN_M:
+        if abs(cte_m) > self.offroad_m:
             self.offroad_events += 1
             self.offroad_log.append(round(t, 2))
             return True
         return False
 
     def report(self, course, distance_m: float, time_s: float) -> dict:
-        turns = [j for j in course.log.junctions if j["sign"] is not None]
+        turns = [j for j in course.log.junctions if j["sign"] is not None or j.get("dead_end")]
         stops = course.log.stops
         lat = np.array(self.latency) if self.latency else np.zeros(1)
         autonomy = 100.0 * max(0.0, 1.0 - self.offroad_events * INTERVENTION_S / max(time_s, 1e-9))
@@ -42,6 +45,7 @@ class Score:
                 "mean_speed": round(distance_m / max(time_s, 1e-9), 3),
                 "fps": 0.0, "latency_ms": {"median": round(float(np.median(lat)), 2),
                                            "p99": round(float(np.percentile(lat, 99)), 2)},
+                "dead_ends_taken": sum(bool(j.get("dead_end")) for j in course.log.junctions),
                 "junctions": course.log.junctions, "stop_log": stops, "offroad_at_s": self.offroad_log}
 
 

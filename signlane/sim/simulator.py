@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from signlane.camera import Camera
+from signlane.camera import VIA_CAMERA_FORWARD_M, via_camera
 from signlane.sim.course import CourseTracker
 from signlane.sim.protocol import ProtocolError, decode_command, decode_telemetry, encode_jpeg, encode_telemetry
 from signlane.sim.score import Score
@@ -46,6 +46,25 @@ class SimConfig:
     max_seconds: float = 600.0
     vehicle: VehicleParams = field(default_factory=VehicleParams)
     send_time: bool = True  # add the "time" key (simulation seconds) to telemetry
+    # VIA's camera sits 0.1 m ahead of the car's origin, which is midway between the axles; the
+    # car's pose is its rear axle's
+    camera_forward_m: float = VIA_CAMERA_FORWARD_M
+
+
+def start_pose(track: Track, wheelbase_m: float) -> tuple[Pose, object, object]:
+    """Where VIA puts the car: its origin at the centre of the map's car_pos cell, facing along the
+    road there (north on VIA's maps), on the ego lane; returns the rear axle's pose, the start
+    tile and the port the car drives in by."""
+    tile, entry, exit_, xy = track.start_state()
+    pts = track.centreline(tile, entry, exit_)
+    i = int(np.argmin(np.hypot(*(pts - xy).T)))
+    d = pts[min(i + 1, len(pts) - 1)] - pts[max(i - 1, 0)]
+    heading = float(np.arctan2(d[1], d[0]))
+    fwd = np.array([np.cos(heading), np.sin(heading)])
+    right = np.array([fwd[1], -fwd[0]])
+    origin = xy + right * track.style.ego_lane_offset()
+    rear = origin - fwd * wheelbase_m / 2
+    return Pose(float(rear[0]), float(rear[1]), heading), tile, entry
 
 
 class Simulator:
@@ -53,12 +72,11 @@ class Simulator:
         self.config = c = config or SimConfig()
         self.track = track
         self.renderer = Renderer(build_scene(track, seed=c.looks_seed, randomise=c.random_looks))
-        self.camera = Camera(c.width, c.height)
-        start = Route.drive(track, 40.0)
-        leg = start.legs[0]
-        self.vehicle = Vehicle(start.pose_at(3.0), c.vehicle)
-        self.course = CourseTracker(track, leg.tile, leg.entry)
-        self.score = Score(track.style.lane_width)
+        self.camera = via_camera(c.width, c.height)
+        pose, tile, entry = start_pose(track, c.vehicle.wheelbase_m)
+        self.vehicle = Vehicle(pose, c.vehicle)
+        self.course = CourseTracker(track, tile, entry)
+        self.score = Score(track.style.lane_width, track.style.offroad_m)
         self.t = 0.0
         self.frame = 0
         self.path: list[tuple[float, float]] = []
@@ -73,7 +91,8 @@ class Simulator:
         """Render the frame at the current pose and return the telemetry message."""
         v = self.vehicle
         rng = np.random.default_rng([self.config.looks_seed, self.frame])
-        self.last_image = self.renderer.render(v.pose, self.camera, self._effects, rng).image
+        self.last_image = self.renderer.render(self._ahead(self.config.camera_forward_m + v.params.wheelbase_m / 2),
+                                               self.camera, self._effects, rng).image
         jpeg = encode_jpeg(self.last_image, self.config.jpeg_quality)
         return encode_telemetry(v.wheel_deg, v.throttle, v.speed, jpeg, self.t if self.config.send_time else None)
 
@@ -83,16 +102,23 @@ class Simulator:
         self.vehicle.step(steering, throttle, dt)
         self.t += dt
         self.frame += 1
-        p = self.vehicle.pose
+        p = self._ahead(self.vehicle.params.wheelbase_m / 2)  # the car's origin, as VIA's referee would see it
         self.path.append((p.x, p.y))
         cte = self.course.update(self.t, p.x, p.y, p.heading, self.vehicle.speed)
         if self.score.frame(self.t, cte, self.vehicle.speed, latency_ms):
             self._intervene()
 
+    def _ahead(self, dist_m: float) -> Pose:
+        """The point dist_m ahead of the rear axle (the car's origin, its camera)."""
+        p = self.vehicle.pose
+        return Pose(p.x + dist_m * float(np.cos(p.heading)), p.y + dist_m * float(np.sin(p.heading)), p.heading)
+
     def _intervene(self) -> None:
-        """Off the lane: put the car back on the lane centre, as a safety driver would."""
-        x, y, heading = self.course.nearest_lane_pose(self.vehicle.pose.x, self.vehicle.pose.y)
-        self.vehicle.pose = Pose(x, y, heading)
+        """Off the road: put the car back on the lane centre, as a safety driver would."""
+        o = self._ahead(self.vehicle.params.wheelbase_m / 2)
+        x, y, heading = self.course.nearest_lane_pose(o.x, o.y)
+        half = self.vehicle.params.wheelbase_m / 2
+        self.vehicle.pose = Pose(x - half * float(np.cos(heading)), y - half * float(np.sin(heading)), heading)
         self.vehicle.wheel_deg = 0.0
 
     def report(self) -> dict:

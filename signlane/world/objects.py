@@ -14,6 +14,7 @@ from signlane.world.track import WorldObject
 SPRITE_BUCKETS = (16, 32, 64, 128, 256)
 POLE_BGR = (120, 120, 125)
 BACK_BGR = (150, 150, 155)
+DISC_BACK_BGR = (228, 228, 228)
 MAX_RANGE_M = 90.0
 
 
@@ -60,8 +61,10 @@ def _corners_world(obj: WorldObject, aspect: float, cam_xy: np.ndarray, ground: 
 
 
 def draw_objects(image: np.ndarray, objects: list[WorldObject], camera: Camera, world_to_ground: np.ndarray,
-                 cache: dict, strength: float) -> list[DrawnObject]:
-    """Draw objects far to near onto image (uint8 BGR, in place); return what was drawn."""
+                 cache: dict, strength: float, sign_gain: float = 1.0, disc_backs: bool = False) -> list[DrawnObject]:
+    """Draw objects far to near onto image (uint8 BGR, in place); return what was drawn.
+    `sign_gain` brightens sign faces (VIA lights them from the car); `disc_backs` draws a sign's
+    back as a white disc (VIA's) instead of a grey plate of the face's outline."""
     if not objects:
         return []
     xy = np.array([[o.x, o.y] for o in objects])
@@ -90,7 +93,8 @@ def draw_objects(image: np.ndarray, objects: list[WorldObject], camera: Camera, 
             continue
         if not ground:
             _draw_pole(image, camera, gpts, obj)
-        d = drawn_face(image, obj, pix, size_px, cache, strength, cam_xy, ground)
+        d = drawn_face(image, obj, pix, size_px, cache, strength, cam_xy, ground,
+                       sign_gain if obj.kind in SIGN_NAMES else 1.0, disc_backs and obj.kind in SIGN_NAMES)
         if d is not None:
             drawn.append(DrawnObject(obj, d[0], d[1], float(dist[i]), d[2], d[3]))
     return drawn
@@ -99,7 +103,7 @@ def draw_objects(image: np.ndarray, objects: list[WorldObject], camera: Camera, 
 def _draw_pole(image: np.ndarray, camera: Camera, face_ground: np.ndarray, obj: WorldObject) -> None:
     base = face_ground[2:4, :2].mean(axis=0)
     bottom_z = face_ground[2, 2]
-    w = 0.04
+    w = 0.035  # half of VIA's 0.07 m pole
     fwd = face_ground[1, :2] - face_ground[0, :2]
     fwd = fwd / (np.hypot(*fwd) + 1e-9) * w
     quad = np.array([[*(base - fwd), bottom_z], [*(base + fwd), bottom_z], [*(base + fwd), 0.0], [*(base - fwd), 0.0]])
@@ -108,7 +112,7 @@ def _draw_pole(image: np.ndarray, camera: Camera, face_ground: np.ndarray, obj: 
         cv2.fillConvexPoly(image, np.round(pix * 16).astype(np.int32), POLE_BGR, cv2.LINE_AA, 4)
 
 
-def drawn_face(image, obj, pix, size_px, cache, strength, cam_xy, ground):
+def drawn_face(image, obj, pix, size_px, cache, strength, cam_xy, ground, gain=1.0, disc_back=False):
     """Warp the sprite into its projected quad; return (roi, face mask, front, area)."""
     H, W = image.shape[:2]
     x0, y0 = np.floor(pix.min(axis=0)).astype(int)
@@ -124,13 +128,31 @@ def drawn_face(image, obj, pix, size_px, cache, strength, cam_xy, ground):
     area *= float(np.mean(sprite[:, :, 3] > 127))  # the face, not its square, is what can be cut off
     src = np.array([[0, 0], [sw, 0], [sw, sh], [0, sh]], np.float32)
     dst = (pix - np.array([cx0, cy0])).astype(np.float32)
-    if not front:  # the back of a sign: a plain grey plate of the same outline
+    if not front:  # the back of a sign: a plain plate of the same outline, or VIA's white disc
         src = src[[1, 0, 3, 2]]
+        if disc_back:
+            sprite = _disc_sprite(sh)
     M = cv2.getPerspectiveTransform(src, dst)
     warped = cv2.warpPerspective(sprite, M, (cx1 - cx0, cy1 - cy0), flags=cv2.INTER_LINEAR,
                                  borderMode=cv2.BORDER_CONSTANT, borderValue=(0, 0, 0, 0))
     alpha = warped[:, :, 3:4].astype(np.float32) * (1.0 / 255.0)
     roi = image[cy0:cy1, cx0:cx1]
-    color = warped[:, :, :3] if front else np.full_like(warped[:, :, :3], BACK_BGR)
+    if front:
+        color = warped[:, :, :3] if gain == 1.0 else cv2.convertScaleAbs(warped[:, :, :3], alpha=gain)
+    else:
+        color = np.full_like(warped[:, :, :3], DISC_BACK_BGR if disc_back else BACK_BGR)
     roi[:] = (roi * (1.0 - alpha) + color * alpha + 0.5).astype(np.uint8)
     return (cx0, cy0, cx1, cy1), warped[:, :, 3] > 127, front, area
+
+
+_DISCS: dict[int, np.ndarray] = {}
+
+
+def _disc_sprite(size: int) -> np.ndarray:
+    """BGRA white disc filling a size x size square (the back of VIA's signs)."""
+    if size not in _DISCS:
+        big = np.zeros((size * 4, size * 4), np.uint8)
+        cv2.circle(big, (size * 2, size * 2), size * 2 - 2, 255, -1, cv2.LINE_AA)
+        a = cv2.resize(big, (size, size), interpolation=cv2.INTER_AREA)
+        _DISCS[size] = np.dstack([np.full((size, size, 3), 255, np.uint8), a])
+    return _DISCS[size]

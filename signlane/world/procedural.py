@@ -1,10 +1,13 @@
-"""Seeded procedural road networks, emitted as VIA map dicts (so one loader serves both).
+"""Seeded procedural road networks, emitted as VIA map dicts in VIA's own conventions (so one
+loader serves both, and a procedural map opens in VIA's editor as it drives here).
 
 A network is a coarse grid of nodes joined by straight roads; the node set comes from a random
 block shape (a polyomino), some inner roads are dropped, and no node is left a dead end. Each
-node becomes a tile by its degree: crossing (4), T-junction (3), straight or lane shift (2,
-through), or a quarter turn of 2x2 or 4x4 cells (2, corner). Signs stand before junctions and
-here and there on plain road; distractors stand along the roadside.
+node becomes a tile by its degree: crossing (4), T-junction (3, VIA's 2x3 block), straight
+(2, through) or a quarter turn of 2x2 or 4x4 cells (2, corner). A lane shift moves a road one
+cell sideways on its way to the next node (that node and the ones beyond it move with it). Some
+maps get dead ends as VIA's editor makes them: a T-junction whose arm leads nowhere. Signs
+stand before junctions (never sending the car into a dead end) and now and then on plain road.
 """
 from __future__ import annotations
 
@@ -12,11 +15,13 @@ import math
 
 import numpy as np
 
-from signlane.world.tiles import OPPOSITE, SIDES, rotate_step
+from signlane.world.tiles import OPPOSITE, SIDES, rotate_side, rotate_step
 
-TURN_ROT = {frozenset("ES"): 0, frozenset("SW"): 90, frozenset("WN"): 180, frozenset("NE"): 270}
-TEE_ROT = {"W": 0, "N": 90, "E": 180, "S": 270}  # keyed by the side without road
+TURN_ROT = {frozenset("SW"): 0, frozenset("ES"): 90, frozenset("NE"): 180, frozenset("WN"): 270}
+TEE_ROT = {"W": 0, "S": 90, "E": 180, "N": 270}  # keyed by the side without road
 SIGN_IDS = {"left": 0, "no_left": 1, "right": 2, "no_right": 3, "stop": 4, "straight": 5}
+VIA_M = 4.0  # signs are placed in VIA's metres (cells of 4 m), beside VIA's 4 m carriageway
+ROAD_HALF_M, KERB_M = 2.0, 0.18
 
 
 def _blocks(rng: np.random.Generator, bc: int, br: int) -> set[tuple[int, int]]:
@@ -49,7 +54,7 @@ def _hole_free(blocks: set[tuple[int, int]], bc: int, br: int) -> bool:
 
 
 def _network(rng: np.random.Generator, bc: int, br: int) -> dict[tuple[int, int], set[str]]:
-    """Node -> set of sides with a road, from block edges; inner edges dropped at random."""
+    """Node (i east, j north) -> set of sides with a road; inner edges dropped at random."""
     blocks = _blocks(rng, bc, br)
     edges: dict[frozenset, int] = {}  # edge -> number of blocks it borders
     for (i, j) in blocks:
@@ -58,15 +63,15 @@ def _network(rng: np.random.Generator, bc: int, br: int) -> dict[tuple[int, int]
             e = frozenset((a, b))
             edges[e] = edges.get(e, 0) + 1
     keep = set(edges)
-    inner = [e for e, n in edges.items() if n == 2]
+    inner = sorted((e for e, n in edges.items() if n == 2), key=lambda e: sorted(e))
     rng.shuffle(inner)
     for e in inner:
-        if rng.random() < 0.45 and _ok_without(keep, e):
+        if rng.random() < 0.25 and _ok_without(keep, e):
             keep.discard(e)
     nodes: dict[tuple[int, int], set[str]] = {}
-    for e in keep:
+    for e in sorted(keep, key=lambda e: sorted(e)):
         a, b = sorted(e)
-        side = "E" if b[0] > a[0] else "S"
+        side = "E" if b[0] > a[0] else "N"
         nodes.setdefault(a, set()).add(side)
         nodes.setdefault(b, set()).add(OPPOSITE[side])
     return nodes
@@ -85,7 +90,7 @@ def _ok_without(keep: set, e: frozenset) -> bool:
         a, b = tuple(x)
         adj.setdefault(a, []).append(b)
         adj.setdefault(b, []).append(a)
-    seen, todo = set(), [next(iter(adj))]
+    seen, todo = set(), [min(adj)]
     while todo:
         n = todo.pop()
         if n not in seen:
@@ -94,116 +99,208 @@ def _ok_without(keep: set, e: frozenset) -> bool:
     return len(seen) == len(adj)
 
 
-def generate_map(seed: int, name: str | None = None, size: str = "medium",
-                 sign_prob: float = 0.8, distractors_per_cell: float = 0.08) -> dict:
-    """A VIA map dict for a seeded random road network (plus a `signlane_distractors` key)."""
+class _Builder:
+    """Tiles by pivot cell, the cells each covers, and the cells a node tile reaches along a side."""
+
+    def __init__(self):
+        self.tiles: dict[tuple[int, int], tuple[int, int]] = {}  # pivot -> (tile_id, rot)
+        self.used: set[tuple[int, int]] = set()
+
+    def put(self, pivot: tuple[int, int], tile_id: int, rot: int, cells) -> None:
+        cells = set(cells)
+        if cells & self.used:
+            raise AssertionError(f"tiles overlap at {sorted(cells & self.used)}")  # spacing prevents it
+        self.tiles[pivot] = (tile_id, rot)
+        self.used |= cells
+
+
+def _add(c: tuple[int, int], off: tuple[int, int]) -> tuple[int, int]:
+    return c[0] + off[0], c[1] + off[1]
+
+
+def _reach(sides: set[str], stub: str | None, turn: int | None) -> int:
+    """How many cells a node's tile covers along each of its roads, beyond the node's cell."""
+    if stub is not None or len(sides) == 3:
+        return 1  # a T-junction's arms
+    return turn - 1 if turn else 0
+
+
+def _node_tile(b: _Builder, c: tuple[int, int], sides: set[str], stub: str | None, k: int | None) -> None:
+    """Place a node's tile at cell c. `stub`: a corner node becomes a T-junction with a dead-end
+    arm on that side instead; `k`: a corner's turn size (2 or 4)."""
+    if stub is not None:
+        sides = sides | {stub}
+    if len(sides) == 4:
+        b.put(c, 1, 0, [c])
+        return
+    if len(sides) == 3:
+        rot = TEE_ROT[({"N", "E", "S", "W"} - sides).pop()]
+        arms = [_add(c, rotate_step(o, rot)) for o in ((0, -1), (0, 1), (1, 0))]
+        corners = [_add(c, rotate_step(o, rot)) for o in ((1, -1), (1, 1))]
+        b.put(c, 4, rot, [c] + arms + corners)
+        return
+    if OPPOSITE[min(sides)] in sides:
+        b.put(c, 0, 0 if "N" in sides else 90, [c])
+        return
+    rot = TURN_ROT[frozenset(sides)]
+    corner = (1, 1) if k == 4 else (0, 0)  # the corner cell (where the two roads' lines cross) at rot 0
+    du, dv = rotate_step(corner, rot)
+    pivot = (c[0] - du, c[1] - dv)
+    block = [(pivot[0] + x, pivot[1] + y) for x, y in
+             (rotate_step((a, bb), rot) for a in range(-(k // 2), k - k // 2) for bb in range(-(k // 2), k - k // 2))]
+    b.put(pivot, 2 if k == 2 else 3, rot, block)
+
+
+def _shift_tile(b: _Builder, start: tuple[int, int], side: str, rng: np.random.Generator) -> None:
+    """A lane shift entered at cell `start` travelling towards `side` (N or E), at either of its
+    two rotations for that direction (VIA's shift moves east going north, south going east)."""
+    if side == "N":
+        rot = 0 if rng.random() < 0.5 else 180
+        pivot = (start[0], start[1] + 1) if rot == 0 else (start[0] + 1, start[1])
+        cells = [start, (start[0], start[1] + 1), (start[0] + 1, start[1]), (start[0] + 1, start[1] + 1)]
+    else:
+        rot = 90 if rng.random() < 0.5 else 270
+        pivot = (start[0], start[1] - 1) if rot == 90 else (start[0] + 1, start[1])
+        cells = [start, (start[0] + 1, start[1]), (start[0], start[1] - 1), (start[0] + 1, start[1] - 1)]
+    b.put(pivot, 5, rot, cells)
+
+
+def generate_map(seed: int, name: str | None = None, size: str = "medium", sign_prob: float = 0.8,
+                 distractors_per_cell: float = 0.08, shift_prob: float = 0.25,
+                 dead_end_prob: float = 0.25) -> dict:
+    """A VIA map dict for a seeded random road network (plus `signlane_*` keys VIA ignores)."""
     rng = np.random.default_rng(seed)
     if size not in ("small", "medium", "large"):
         raise ValueError(f"size must be small, medium or large, not {size!r}")
     bc, br = {"small": (1, 1), "medium": (2, int(rng.integers(1, 3))), "large": (3, int(rng.integers(2, 4)))}[size]
-    spacing = [int(rng.integers(7, 11)) for _ in range(max(bc, br) + 1)]
     nodes = _network(rng, bc, br)
+    spacing = [int(rng.integers(8, 12)) for _ in range(max(bc, br) + 1)]
+    stubs = _choose_stubs(rng, nodes, dead_end_prob)
+    turns = {n: (4 if rng.random() < 0.5 else 2) for n, s in sorted(nodes.items())
+             if len(s) == 2 and OPPOSITE[min(s)] not in s and n not in stubs}
+    reach = {n: {s: _reach(nodes[n], stubs.get(n), turns.get(n)) for s in nodes[n]} for n in nodes}
     xs = np.concatenate([[0], np.cumsum(spacing[:bc])])
     ys = np.concatenate([[0], np.cumsum(spacing[:br])])
-    pad = 2
-    cols, rows = int(xs[-1]) + 1 + 2 * pad, int(ys[-1]) + 1 + 2 * pad
-    cell_of = {n: (int(xs[n[0]]) + pad, int(ys[n[1]]) + pad) for n in nodes}
-    tiles: dict[tuple[int, int], tuple[int, int]] = {}  # pivot cell -> (tile_id, rot)
-    used: set[tuple[int, int]] = set()
-    reach: dict[tuple[tuple[int, int], str], int] = {}  # cells a node tile uses along each side
-    for n, sides in nodes.items():
-        c = cell_of[n]
-        if len(sides) == 4:
-            tiles[c] = (1, 0)
-        elif len(sides) == 3:
-            missing = ({"N", "E", "S", "W"} - sides).pop()
-            tiles[c] = (4, TEE_ROT[missing])
-        elif OPPOSITE[min(sides)] in sides:
-            tiles[c] = (0, 0 if "N" in sides else 90)
-        else:
-            k = 4 if rng.random() < 0.5 else 2
-            rot = TURN_ROT[frozenset(sides)]
-            du, dv = rotate_step((k // 2, k // 2), rot)
-            # the block lies along both incident edges: its corner cell is the node's cell
-            off = [(a, b) for a in range(k) for b in range(k)]
-            su, sv = SIDES[sorted(sides)[0]], SIDES[sorted(sides)[1]]
-            cells = {(c[0] + a * su[0] + b * sv[0], c[1] + a * su[1] + b * sv[1]) for a, b in off}
-            tiles[(c[0] + du, c[1] + dv)] = (2 if k == 2 else 3, rot)
-            used |= cells
-            for s in sorted(sides):
-                reach[(n, s)] = k - 1
-            continue
-        used.add(c)
-    # plain road cells along each edge, skipping what turn blocks already cover
-    for n, sides in nodes.items():
-        for s in sorted(sides & {"E", "S"}):
-            m = (n[0] + (s == "E"), n[1] + (s == "S"))
-            a, b = cell_of[n], cell_of[m]
-            step = SIDES[s]
-            length = abs(b[0] - a[0]) + abs(b[1] - a[1])
-            lo = 1 + reach.get((n, s), 0)
-            hi = length - 1 - reach.get((m, OPPOSITE[s]), 0)
-            if hi < lo - 1:
-                raise AssertionError("turns overlap: spacing too small")  # spacing >= 7 prevents it
-            for i in range(lo, hi + 1):
-                cell = (a[0] + i * step[0], a[1] + i * step[1])
-                shift = rng.random() < 0.06 and lo < i < hi
-                tiles[cell] = (5 if shift else 0, 0 if s == "S" else 90)
-                used.add(cell)
-    cell_datas = [{"id_inmap": r * cols + c, "tile_id": t, "rot": rot}
-                  for (c, r), (t, rot) in sorted(tiles.items(), key=lambda kv: (kv[0][1], kv[0][0]))]
-    straight = [c for c, (t, _) in tiles.items() if t == 0]
-    start = straight[int(rng.integers(len(straight)))] if straight else next(iter(tiles))
-    data = {"map_name": name or f"procedural-{seed}", "bg_id": int(rng.integers(0, 4)),
-            "map_size": {"x": cols, "y": rows}, "cell_datas": cell_datas,
-            "anchor_offset": {"x": 0.0, "y": 0.0}, "car_pos": {"x": float(start[0]), "y": float(start[1])}}
-    data["sign_obj_datas"] = _place_signs(rng, tiles, cols, rows, sign_prob)
-    data["signlane_distractors"] = []  # filled in world metres by the renderer's scene builder
-    data["signlane_distractor_density"] = distractors_per_cell
-    return data
+    # a lane shift on a segment moves the node at its far end (and those beyond) one cell over;
+    # only where the segment has room left between its two node tiles
+    def room(n, s, length):
+        m = (n[0] + (s == "E"), n[1] + (s == "N"))
+        return length - 2 - reach[n][s] - reach[m][OPPOSITE[s]] >= 4
+    vshift = {n: int(room(n, "N", spacing[n[1]]) and rng.random() < shift_prob / 2)
+              for n, s in sorted(nodes.items()) if "N" in s}
+    hshift = {n: int(room(n, "E", spacing[n[0]]) and rng.random() < shift_prob / 2)
+              for n, s in sorted(nodes.items()) if "E" in s}
+    pad = 4
+    cell_of = {}
+    for (i, j) in sorted(nodes):
+        col = int(xs[i]) + sum(vshift.get((i, jj), 0) for jj in range(j))
+        row = int(ys[j]) - sum(hshift.get((ii, j), 0) for ii in range(i))
+        cell_of[(i, j)] = (col + pad, row + pad + bc)
+    b = _Builder()
+    for n, sides in sorted(nodes.items()):
+        _node_tile(b, cell_of[n], sides, stubs.get(n), turns.get(n))
+    for n, sides in sorted(nodes.items()):
+        for s in sorted(sides & {"E", "N"}):
+            m = (n[0] + (s == "E"), n[1] + (s == "N"))
+            shifted = (vshift if s == "N" else hshift).get(n, 0)
+            _segment(b, rng, cell_of[n], cell_of[m], s, reach[n][s], reach[m][OPPOSITE[s]], shifted)
+    for n, side in sorted(stubs.items()):
+        _stub_road(b, rng, cell_of[n], side)
+    return _map_dict(rng, b, name or f"procedural-{seed}", sign_prob, distractors_per_cell)
 
 
-def _approaches(tiles: dict) -> list[tuple[tuple[int, int], str, set[str]]]:
-    """(junction cell, side the car enters by, exits as turns) for every junction approach."""
-    out = []
-    for c, (t, rot) in tiles.items():
-        if t not in (1, 4):
-            continue
-        sides = {"N", "E", "S", "W"} if t == 1 else {"N", "E", "S", "W"} - {
-            next(k for k, v in TEE_ROT.items() if v == rot)}
-        for entry in sorted(sides):  # sorted: set order of strings differs between processes
-            turns = set()
-            for ex in sorted(sides - {entry}):
-                if ex == OPPOSITE[entry]:
-                    turns.add("straight")
-                else:
-                    fu, fv = (-x for x in SIDES[entry])
-                    eu, ev = SIDES[ex]
-                    turns.add("right" if fu * ev - fv * eu > 0 else "left")
-            out.append((c, entry, turns))
+def _choose_stubs(rng: np.random.Generator, nodes: dict, prob: float) -> dict[tuple[int, int], str]:
+    """Corner nodes that become T-junctions with a dead-end arm (continuing one of its roads)."""
+    out = {}
+    for n, sides in sorted(nodes.items()):
+        if len(sides) == 2 and OPPOSITE[min(sides)] not in sides and rng.random() < prob:
+            out[n] = OPPOSITE[sorted(sides)[int(rng.integers(2))]]
     return out
 
 
-def _place_signs(rng: np.random.Generator, tiles: dict, cols: int, rows: int, prob: float) -> list[dict]:
-    signs = []
-    for c, entry, turns in _approaches(tiles):
-        if rng.random() > prob:
+def _segment(b: _Builder, rng, a: tuple[int, int], z: tuple[int, int], side: str, reach_a: int,
+             reach_z: int, shifted: int) -> None:
+    """Straight cells (and a lane shift) from node cell a to node cell z going `side`."""
+    step = SIDES[side]
+    across = (1, 0) if side == "N" else (0, -1)  # where a shift moves the road
+    along = (z[1] - a[1]) if side == "N" else (z[0] - a[0])
+    lo, hi = 1 + reach_a, along - 1 - reach_z  # cells along the segment left for plain road
+    at = int(rng.integers(lo, hi)) if shifted else None  # the generator only shifts where there is room
+    cur = a
+    for i in range(lo, hi + 1):
+        if at is not None and i in (at, at + 1):
+            if i == at:
+                start = (a[0] + i * step[0], a[1] + i * step[1])
+                _shift_tile(b, start, side, rng)
             continue
-        options = ["stop"] + sorted(turns)
-        options += ["no_" + t for t in ("left", "right") if t in turns and len(turns) > 1]
-        name = options[int(rng.integers(len(options)))]
-        back = float(rng.uniform(0.9, 1.6))  # cells before the junction cell edge
-        signs.append(_sign_at(c, entry, back, name, cols, rows))
+        off = (across[0], across[1]) if at is not None and i > at + 1 else (0, 0)
+        cell = (a[0] + i * step[0] + off[0], a[1] + i * step[1] + off[1])
+        b.put(cell, 0, 0 if side == "N" else 90, [cell])
+        cur = cell
+    del cur
+
+
+def _stub_road(b: _Builder, rng, node: tuple[int, int], side: str) -> None:
+    """0-2 straight cells beyond a dead-end arm, then nothing."""
+    step = SIDES[side]
+    for i in range(2, 2 + int(rng.integers(0, 3))):
+        cell = (node[0] + i * step[0], node[1] + i * step[1])
+        b.put(cell, 0, 0 if side in "NS" else 90, [cell])
+
+
+def _map_dict(rng, b: _Builder, name: str, sign_prob: float, distractors: float) -> dict:
+    cols = max(c for c, _ in b.used) + 5
+    rows = max(r for _, r in b.used) + 5
+    cell_datas = [{"id_inmap": r * cols + c, "tile_id": t, "rot": rot}
+                  for (c, r), (t, rot) in sorted(b.tiles.items(), key=lambda kv: (kv[0][1], kv[0][0]))]
+    north = sorted(c for c, (t, rot) in b.tiles.items() if t == 0 and rot == 0)
+    straight = north or sorted(c for c, (t, _) in b.tiles.items() if t == 0)
+    start = straight[int(rng.integers(len(straight)))]
+    data = {"map_name": name, "bg_id": int(rng.integers(0, 3)), "map_size": {"x": cols, "y": rows},
+            "cell_datas": cell_datas, "anchor_offset": {"x": 0.0, "y": 0.0},
+            "car_pos": {"x": float(start[0]), "y": float(start[1])}}
+    data["sign_obj_datas"] = _place_signs(rng, data, sign_prob)
+    data["signlane_distractors"] = []  # filled in world metres by the renderer's scene builder
+    data["signlane_distractor_density"] = distractors
+    return data
+
+
+def _place_signs(rng: np.random.Generator, data: dict, prob: float) -> list[dict]:
+    """Signs for junction approaches (what the sign asks is always possible and never a dead
+    end) and the odd stop sign on plain road."""
+    from signlane.world.track import Track
+    track = Track.from_via({**data, "sign_obj_datas": []})
+    signs = []
+    for tile in track.tiles:
+        if tile.junction:
+            for entry in tile.ports:
+                viable = track.viable_exits(tile, entry)
+                if not track.leads_on(tile, entry) or not viable or rng.random() > prob:
+                    continue  # nobody arrives from a dead end
+                turns = sorted({track.turn_of(entry, p) for p in viable})
+                dead = sorted({track.turn_of(entry, p) for p in track.exits(tile, entry)} - set(turns))
+                options = ["stop"] + turns
+                options += ["no_" + t for t in ("left", "right") if t in turns and len(turns) > 1]
+                options += ["no_" + t for t in dead if t in ("left", "right")]
+                label = options[int(rng.integers(len(options)))]
+                signs.append(_sign_before(track, tile, entry, label, float(rng.uniform(1.0, 7.0)),
+                                          float(rng.uniform(1.6, 4.5))))
+        elif tile.tile_id == 0 and rng.random() < 0.03:
+            entry = tile.ports[int(rng.integers(2))]
+            signs.append(_sign_before(track, tile, entry, "stop", 0.0, float(rng.uniform(1.6, 4.5))))
     return signs
 
 
-def _sign_at(cell: tuple[int, int], entry: str, back: float, name: str, cols: int, rows: int) -> dict:
-    """A sign on the right of traffic entering `cell` through side `entry`, facing it."""
-    eu, ev = SIDES[entry]  # points from the cell towards where the car comes from
-    fu, fv = -eu, -ev  # travel direction
-    ru, rv = -fv, fu  # right of travel, with v down the map
-    lateral = 0.42  # cells right of the centreline: beyond the road edge
-    u = cell[0] - cols / 2 + eu * (0.5 + back) + ru * lateral
-    v = cell[1] - rows / 2 + ev * (0.5 + back) + rv * lateral
-    facing_deg = math.degrees(math.atan2(eu, -ev)) % 360  # clockwise from north, towards the car
-    return {"sign_id": SIGN_IDS[name], "pos": {"x": round(u, 4), "y": round(v, 4)}, "rot": round(facing_deg, 3)}
+def _sign_before(track, tile, entry, label: str, back_m: float, beside_m: float) -> dict:
+    """A sign on the right of traffic entering `tile` through `entry`, back_m before that edge
+    and beside_m beyond the asphalt (VIA's editor puts signs 1.6-4.5 m beside it), facing it."""
+    edge = (track.cell_centre(entry.cell) + 0.5 * np.array(SIDES[entry.side]) * track.cell_m) / track.cell_m * VIA_M
+    travel = -np.array(SIDES[entry.side], float)
+    right = np.array([travel[1], -travel[0]])
+    pos = edge - travel * back_m + right * (ROAD_HALF_M + KERB_M + beside_m)
+    facing = math.degrees(math.atan2(-travel[1], -travel[0]))
+    return {"sign_id": SIGN_IDS[label], "pos": {"x": round(float(pos[0] / VIA_M), 4), "y": round(float(pos[1] / VIA_M), 4)},
+            "rot": round((facing + 90.0) % 360.0, 3)}
+
+
+__all__ = ["generate_map", "rotate_side"]

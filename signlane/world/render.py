@@ -8,22 +8,23 @@ world-fixed noise texture gives the ground its grain; a 360-degree panorama give
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
 
 from signlane.camera import Camera
 from signlane.world.effects import Effects, apply_effects
+from signlane.world.barriers import draw_barriers
 from signlane.world.objects import draw_objects
 from signlane.world.route import Pose, Route
-from signlane.world.scene import ASPHALT, SHADOW, WHITE, YELLOW, Scene
+from signlane.world.scene import ASPHALT, KERB, SHADOW, WHITE, YELLOW, Scene
 from signlane.world.truth import GroundTruth, compute_truth
 
 NEAR_M = 0.3  # polygons are clipped to this depth in front of the camera
 VIEW_RANGE_M = 80.0  # beyond this, paint is a few pixels under the fogged horizon
 PANO_PX_PER_DEG = 4.0
-FOG_START_M = 40.0
+BARRIER_ID = 7  # paint id of barrier pixels (drawn upright after the ground)
 
 
 @dataclass(frozen=True)
@@ -46,6 +47,11 @@ class Renderer:
         # the texture's own contrast is about 0.3; scale it to the scene's texture strength once
         scale = scene.looks.texture / 0.3
         self._texture_img = cv2.addWeighted(scene.texture, scale, scene.texture, 0, 128 * (1 - scale))
+        # how much of the texture each paint id gets (VIA's asphalt is nearly uniform)
+        share = np.ones(256, np.float32)
+        share[1:7] = scene.looks.road_texture
+        share[BARRIER_ID] = 0.3
+        self._texture_share = share
 
     # --- public --------------------------------------------------------------------------
     def render_on_route(self, route: Route, s: float, camera: Camera, lateral_m: float = 0.0,
@@ -83,18 +89,21 @@ class Renderer:
                 continue
             cv2.fillPoly(ids, [pts], _PAINT_ID[layer] + (2 if faded else 0), cv2.LINE_8, 4)
         cv2.multiply(ids, geo.ground_u8, ids)
+        if self.scene.barriers is not None:
+            draw_barriers(ids, self.scene.barriers, w2g, camera, BARRIER_ID)
         image = cv2.LUT(cv2.merge([ids, ids, ids]), self._palette_lut)
         image = cv2.GaussianBlur(image, (3, 3), 0.6)  # stands in for anti-aliasing
-        self._texture(image, pose, camera, shadow, geo.ground_top)
+        self._texture(image, ids, pose, camera, shadow, geo.ground_top)
         self._sky(image, pose, camera, geo)
-        drawn = draw_objects(image, self.scene.objects, camera, w2g, self.scene.sprite_cache, self.sign_strength)
+        drawn = draw_objects(image, self.scene.objects, camera, w2g, self.scene.sprite_cache, self.sign_strength,
+                             self.scene.looks.sign_gain, self.scene.track.style.kind == "via")
         return image, ids, drawn
 
     def _palette(self) -> np.ndarray:
         lk = self.scene.looks
         fade = [tuple(int(0.45 * c + 0.55 * a) for c, a in zip(col, lk.asphalt)) for col in (lk.white, lk.yellow)]
         table = np.zeros((256, 1, 3), np.uint8)
-        for i, col in enumerate([lk.grass, lk.asphalt, lk.white, lk.yellow, *fade]):
+        for i, col in enumerate([lk.grass, lk.asphalt, lk.white, lk.yellow, *fade, lk.kerb, lk.barrier]):
             table[i, 0] = col
         return table
 
@@ -134,9 +143,10 @@ class Renderer:
                 out.append((layers[k], pix[i0:i1], faded[k]))
         return out
 
-    def _texture(self, image: np.ndarray, pose: Pose, camera: Camera, shadow: np.ndarray | None,
-                 top: int) -> None:
-        """Multiply the ground rows by a world-fixed noise texture (and shadows)."""
+    def _texture(self, image: np.ndarray, ids: np.ndarray, pose: Pose, camera: Camera,
+                 shadow: np.ndarray | None, top: int) -> None:
+        """Multiply the ground rows by a world-fixed noise texture (each surface its share of
+        it) and by shadows."""
         if top >= camera.height:
             return
         sc = self.scene
@@ -151,6 +161,8 @@ class Renderer:
         t = cv2.warpPerspective(self._texture_img, h, small, flags=cv2.WARP_INVERSE_MAP | cv2.INTER_LINEAR,
                                 borderMode=cv2.BORDER_WRAP)
         t = cv2.resize(t, (camera.width, rows_n), interpolation=cv2.INTER_LINEAR)
+        share = self._texture_share[ids[top:]]
+        t = (128.0 + (t.astype(np.float32) - 128.0) * share).astype(np.uint8)
         if shadow is not None:
             t = cv2.multiply(t, shadow[top:], scale=1 / 255.0)
         rows = image[top:]
@@ -175,11 +187,12 @@ class Renderer:
             sky = cv2.warpAffine(pano, m, (camera.width, bottom), flags=cv2.WARP_INVERSE_MAP | cv2.INTER_LINEAR,
                                  borderMode=cv2.BORDER_REPLICATE)
             cv2.copyTo(sky, geo.sky_u8[:bottom], image[:bottom])
-        if geo.fog_rows[1] > geo.fog_rows[0]:
-            r0, r1 = geo.fog_rows
+        fog_rows, fog_alpha = geo.fog(self.scene.looks.fog_m)
+        if fog_rows[1] > fog_rows[0]:
+            r0, r1 = fog_rows
             hz = np.array(self.scene.looks.sky_horizon, np.float32)
             band = image[r0:r1].astype(np.float32)
-            band += geo.fog_alpha * (hz - band)
+            band += fog_alpha * (hz - band)
             image[r0:r1] = band.astype(np.uint8)
 
 
@@ -193,8 +206,19 @@ class _CameraMaps:
     sky_u8: np.ndarray  # uint8 (H, W) 0/1, for cv2.copyTo
     ground_top: int  # first row with ground pixels
     sky_bottom: int  # one past the last row with sky pixels
-    fog_rows: tuple[int, int]
-    fog_alpha: np.ndarray  # float32 (r1-r0, W, 1)
+    dist: np.ndarray  # float32 (H, W): metres to the ground each pixel sees (inf above the horizon)
+    _fog: dict = field(default_factory=dict, repr=False)
+
+    def fog(self, fog_m: tuple[float, float]) -> tuple[tuple[int, int], np.ndarray]:
+        """Rows with fog and its weight (float32 (rows, W, 1)) for a fog from fog_m[0] to fog_m[1]."""
+        if fog_m not in self._fog:
+            start, full = fog_m
+            alpha = np.clip((self.dist - start) / max(full - start, 1e-3), 0, 0.85).astype(np.float32)
+            alpha[self.sky] = 0
+            rows = np.nonzero(alpha.max(axis=1) > 0.01)[0]
+            r0, r1 = (int(rows[0]), int(rows[-1]) + 1) if len(rows) else (0, 0)
+            self._fog[fog_m] = ((r0, r1), alpha[r0:r1, :, None].copy())
+        return self._fog[fog_m]
 
 
 _MAPS_CACHE: dict[Camera, _CameraMaps] = {}
@@ -212,13 +236,9 @@ def _camera_maps(camera: Camera) -> _CameraMaps:
     u = np.arange(camera.width, dtype=np.float32) + 0.5
     v = np.arange(camera.height, dtype=np.float32) + 0.5
     val = (n[0] * u[None, :] + n[1] * v[:, None] + c) / (np.hypot(*n) + 1e-12)  # px below the horizon
-    dist = camera.height_m * camera.focal_px / np.maximum(val, 1e-3)
-    alpha = np.clip((dist - FOG_START_M) / (4 * FOG_START_M), 0, 0.85).astype(np.float32)
-    alpha[sky] = 0
-    fog = np.nonzero(alpha.max(axis=1) > 0.01)[0]
-    r0, r1 = (int(fog[0]), int(fog[-1]) + 1) if len(fog) else (0, 0)
+    dist = (camera.height_m * camera.focal_px / np.maximum(val, 1e-3)).astype(np.float32)
     maps = _CameraMaps(ground, ground.astype(np.uint8), sky, sky.astype(np.uint8), int(rows_g[0]) if len(rows_g) else camera.height,
-                       int(rows_s[-1]) + 1 if len(rows_s) else 0, (r0, r1), alpha[r0:r1, :, None].copy())
+                       int(rows_s[-1]) + 1 if len(rows_s) else 0, dist)
     if len(_MAPS_CACHE) > 64:
         _MAPS_CACHE.clear()
     _MAPS_CACHE[camera] = maps
@@ -226,8 +246,8 @@ def _camera_maps(camera: Camera) -> _CameraMaps:
 
 
 _ORDER_LUT = np.zeros(8, np.int64)
-_ORDER_LUT[[ASPHALT, WHITE, YELLOW, SHADOW]] = [0, 1, 1, 2]
-_PAINT_ID = {ASPHALT: 1, WHITE: 2, YELLOW: 3}  # palette index; faded paint adds 2
+_ORDER_LUT[[ASPHALT, KERB, WHITE, YELLOW, SHADOW]] = [0, 1, 2, 2, 3]
+_PAINT_ID = {ASPHALT: 1, WHITE: 2, YELLOW: 3, KERB: 6}  # palette index; faded paint adds 2
 
 
 def _to_fixed(pix: np.ndarray) -> np.ndarray:

@@ -29,6 +29,7 @@ class Leg:
 
 
 def random_policy(rng: np.random.Generator) -> ExitPolicy:
+    """Any exit offered (routes offer only those that do not lead into a dead end)."""
     def choose(track, tile, entry, exits):
         return exits[int(rng.integers(len(exits)))]
     return choose
@@ -67,6 +68,7 @@ class Route:
         self.right = np.column_stack([tang[:, 1], -tang[:, 0]])
         self.lane_offset = track.style.ego_lane_offset()
         self.lane = centre + self.lane_offset * self.right
+        self.start_s = 0.0  # arc length of the car's start (the start cell's centre), when on the route
 
     @property
     def length(self) -> float:
@@ -89,31 +91,37 @@ class Route:
     @classmethod
     def _walk(cls, track: Track, policy: ExitPolicy, length_m: float, reverse: bool,
               stop_at_start: bool, max_legs: int = 20000) -> "Route":
-        tile = track.tile_at(track.start_cell) or track.tiles[0]
-        if tile.junction:  # start on a plain road where possible
-            tile = next((t for t in track.tiles if not t.junction), tile)
-        state = (tile, tile.ports[1] if reverse else tile.ports[0])
+        """Follow the road from where VIA starts the car (world/track.py start_state), choosing
+        among exits that do not lead into a dead end; a route that meets a dead end stops there."""
+        tile, entry, exit_, start_xy = track.start_state()
+        state = (tile, exit_ if reverse else entry)
         steps: list[tuple[Tile, Port, Port]] = []
         seen: dict = {}
         total = 0.0
         for _ in range(max_legs):
             if stop_at_start and state in seen:
                 # a lap is the cycle the walk fell into (the start may lead into it)
-                return cls._from_steps(track, steps[seen[state]:], closed=True)
+                return cls._from_steps(track, steps[seen[state]:], closed=True, start_xy=start_xy)
             seen[state] = len(steps)
             t, e = state
-            exits = track.exits(t, e)
+            exits = track.viable_exits(t, e) or track.exits(t, e)
+            if not exits:
+                break
             out = exits[0] if len(exits) == 1 else policy(track, t, e, exits)
             steps.append((t, e, out))
             total += float(np.hypot(*np.diff(track.centreline(t, e, out), axis=0).T).sum())
-            state = track.next_tile(t, out)
-            if not stop_at_start and total >= length_m:
-                return cls._from_steps(track, steps, closed=False)
+            nxt = track.next_tile(t, out)
+            if nxt is None or (not stop_at_start and total >= length_m):
+                if stop_at_start:
+                    raise RuntimeError(f"{track.name}: the road from the start ends at a dead end "
+                                       "before it closes into a loop")
+                return cls._from_steps(track, steps, closed=False, start_xy=start_xy)
+            state = nxt
         raise RuntimeError("the route did not close (or reach its length) within "
                            f"{max_legs} tiles with this exit policy")
 
     @classmethod
-    def _from_steps(cls, track: Track, steps: list, closed: bool) -> "Route":
+    def _from_steps(cls, track: Track, steps: list, closed: bool, start_xy=None) -> "Route":
         legs, pieces, s0 = [], [], 0.0
         for t, e, out in steps:
             pts = track.centreline(t, e, out)
@@ -123,7 +131,10 @@ class Route:
         centre = np.concatenate(pieces)
         if closed:
             centre = centre[:-1]  # the last point repeats the first
-        return cls(track, legs, centre, closed)
+        route = cls(track, legs, centre, closed)
+        if start_xy is not None and route.legs[0].tile is track.tile_at(track.start_cell):
+            route.start_s = float(route.project(*start_xy)[0])
+        return route
 
     # --- queries ------------------------------------------------------------------------
     def index_at(self, s: float) -> int:

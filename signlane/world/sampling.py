@@ -11,18 +11,30 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from signlane.camera import Camera
+from signlane.camera import Camera, via_camera
 from signlane.world.effects import Effects
+from signlane.world.looks import random_style
 from signlane.world.procedural import generate_map
 from signlane.world.render import Renderer, Sample
 from signlane.world.route import Route, random_policy
-from signlane.world.scene import build_scene, random_style
+from signlane.world.scene import build_scene
 from signlane.world.track import RoadStyle, Track
 
+STYLES = ("painted", "via", "mixed")
 
-def random_camera(rng: np.random.Generator, width: int, height: int, wide: float = 1.0) -> Camera:
-    """A plausible small-car camera: FOV 60-100 deg, 0.9-1.8 m high, pitched 4-18 deg down.
-    `wide` scales the spread (0 gives the default camera at this size)."""
+
+def random_camera(rng: np.random.Generator, width: int, height: int, wide: float = 1.0,
+                  style: str = "painted") -> Camera:
+    """A plausible small-car camera: FOV 60-100 deg, 0.9-1.8 m high, pitched 4-18 deg down
+    (VIA-style worlds: around VIA's own camera, 2.9 m at 11.8 degrees). `wide` scales the spread
+    (0 gives the default camera at this size)."""
+    if style == "via":
+        base = via_camera(width, height)
+        if wide <= 0:
+            return base
+        return replace(base, hfov_deg=float(np.clip(base.hfov_deg + rng.uniform(-10, 10) * wide, 50, 110)),
+                       height_m=float(np.clip(base.height_m + rng.uniform(-0.8, 0.4) * wide, 1.0, 3.5)),
+                       pitch_deg=float(np.clip(base.pitch_deg + rng.uniform(-5, 5) * wide, 3, 22)))
     base = Camera(width=width, height=height)
     if wide <= 0:
         return base
@@ -45,6 +57,7 @@ class SamplerConfig:
     focus: str = "none"  # none | signs: place the car 4-45 m before a sign facing it (sign datasets)
     camera_spread: float = 1.0  # scales random_camera's spread of FOV, height and pitch
     wide_prob: float = 0.0  # chance a frame is 16:9 (same width, fewer rows) instead of width x height
+    style: str = "painted"  # painted (lanes and lines) | via (VIA's kerbed road) | mixed (half each, per track)
 
 
 # training sets that must generalise past the renderer: wild effects, strong wear and shadows,
@@ -67,9 +80,10 @@ class FrameSampler:
             return
         cfg = self.config
         rng = np.random.default_rng([self.seed, group, 1])
-        style = random_style(rng) if cfg.randomise else RoadStyle()
+        kind = group_style(cfg.style, rng)
+        self._kind = kind
         track = Track.from_via(generate_map(int(rng.integers(1 << 31)), size=cfg.map_size),
-                               cell_m=float(rng.uniform(10, 16)) if cfg.randomise else 12.0, style=style)
+                               style=track_style(kind, rng, cfg.randomise))
         self._route = Route.drive(track, 2000.0, random_policy(rng), reverse=bool(rng.random() < 0.5))
         scene = build_scene(track, seed=int(rng.integers(1 << 31)), randomise=cfg.randomise,
                             looks_strength=cfg.looks_strength)
@@ -89,7 +103,7 @@ class FrameSampler:
         cfg = self.config
         self._prepare(index // cfg.frames_per_track)
         rng = np.random.default_rng([self.seed, index, 2])
-        camera = random_camera(rng, cfg.width, cfg.height, cfg.camera_spread if cfg.randomise else 0.0)
+        camera = random_camera(rng, cfg.width, cfg.height, cfg.camera_spread if cfg.randomise else 0.0, self._kind)
         if cfg.wide_prob and rng.random() < cfg.wide_prob:  # drawn only when enabled: older sets keep their pixels
             camera = camera.with_size(cfg.width, max(16, round(cfg.width * 9 / 16)))
         route = self._route
@@ -99,6 +113,23 @@ class FrameSampler:
         lateral = float(np.clip(rng.normal(0, cfg.lateral_m), -1.2, 1.2))
         heading = float(np.radians(np.clip(rng.normal(0, cfg.heading_deg), -12, 12)))
         return self._renderer.render_on_route(route, s, camera, lateral, heading, self.effects_for(rng), rng)
+
+
+def group_style(style: str, rng: np.random.Generator) -> str:
+    """The road style of one track of a dataset: mixed draws painted or via, half each."""
+    if style not in STYLES:
+        raise ValueError(f"unknown style {style!r} ({', '.join(STYLES)})")
+    if style == "mixed":
+        return "via" if rng.random() < 0.5 else "painted"
+    return style
+
+
+def track_style(kind: str, rng: np.random.Generator, randomise: bool) -> RoadStyle:
+    """A track's road style: VIA's own or painted lanes, randomised (painted on 10-16 m cells)."""
+    if kind == "via":
+        return random_style(rng, "via") if randomise else RoadStyle.via()
+    style = random_style(rng) if randomise else RoadStyle()
+    return replace(style, cell_m=float(rng.uniform(10, 16)) if randomise else 12.0)
 
 
 def signs_along(route: Route, objects) -> np.ndarray:
@@ -125,12 +156,13 @@ class DriveSampler:
         self.config = config or SamplerConfig(effects="clean")
         rng = np.random.default_rng([int(seed), 0, 3])
         cfg = self.config
+        kind = group_style(cfg.style, rng)
         if track is None:
-            style = random_style(rng) if cfg.randomise else RoadStyle()
-            track = Track.from_via(generate_map(int(rng.integers(1 << 31)), size=cfg.map_size), style=style)
+            track = Track.from_via(generate_map(int(rng.integers(1 << 31)), size=cfg.map_size),
+                                   style=track_style(kind, rng, cfg.randomise))
         self.route = Route.drive(track, 5000.0, random_policy(rng))
         self.renderer = Renderer(build_scene(track, seed=int(rng.integers(1 << 31)), randomise=cfg.randomise))
-        self.camera = Camera(width=cfg.width, height=cfg.height)
+        self.camera = via_camera(cfg.width, cfg.height) if track.style.kind == "via" else Camera(cfg.width, cfg.height)
         self.step_m = speed_mps / fps
         self.seed = int(seed)
 

@@ -1,8 +1,11 @@
-"""Per-track scene: road and paint polygons in world metres, textures, objects and looks.
+"""Per-track scene: road, kerb and paint polygons in world metres, barriers, textures, objects
+and looks.
 
 Everything here is computed once per track and appearance seed; the renderer then only
-transforms, clips and fills what the camera can see. Paint is a polygon list per tile so the
-rendered pixels and the label masks come from the same polygons.
+transforms, clips and fills what the camera can see. Ground polygons live in one array so the
+rendered pixels and the label masks come from the same polygons. Two road styles
+(world/track.py RoadStyle): VIA's kerbed carriageway (world/via_geometry.py) and painted lanes
+(world/painted_roads.py).
 """
 from __future__ import annotations
 
@@ -13,56 +16,15 @@ import cv2
 import numpy as np
 
 from signlane.world.art import DISTRACTOR_KINDS
-from signlane.world.tiles import SIDES
-from signlane.world.track import RoadStyle, Track, WorldObject
+from signlane.world.looks import Looks, default_looks, random_looks, random_style  # noqa: F401 (re-exported)
+from signlane.world.painted_roads import ASPHALT, KERB, SHADOW, WHITE, WORN, YELLOW, tile_polygons  # noqa: F401
+from signlane.world.track import Track, WorldObject
+from signlane.world.via_geometry import kerb_band, tile_geometry
 
-# paint layers, drawn in this order; the label bit each sets in the label image
-ASPHALT, WHITE, YELLOW, WORN, SHADOW = 0, 1, 2, 3, 4
 MARKING_BIT, ROAD_BIT = 1, 2
-
-PAINT = {"white": WHITE, "yellow": YELLOW}
-
-
-@dataclass(frozen=True)
-class Looks:
-    """Scene colours (BGR) and texture strengths."""
-
-    asphalt: tuple[int, int, int] = (92, 92, 96)
-    grass: tuple[int, int, int] = (60, 120, 80)
-    white: tuple[int, int, int] = (235, 235, 235)
-    yellow: tuple[int, int, int] = (40, 190, 230)
-    sky_top: tuple[int, int, int] = (225, 170, 110)
-    sky_horizon: tuple[int, int, int] = (235, 215, 195)
-    texture: float = 0.12  # multiplicative noise amplitude of the ground texture
-    worn_prob: float = 0.0  # chance a paint piece is missing
-    fade_prob: float = 0.0  # chance a paint piece is faded towards the asphalt
-    shadows: int = 0  # number of world-fixed shadow polygons per tile-ish area
-
-
-def random_looks(rng: np.random.Generator, strength: float = 1.0) -> Looks:
-    def jitter(c, amount):
-        return tuple(int(np.clip(v + rng.normal(0, amount * strength), 0, 255)) for v in c)
-    grey = float(rng.uniform(60, 130))
-    asphalt = tuple(int(np.clip(grey + rng.normal(0, 6 * strength), 0, 255)) for _ in range(3))
-    grass_options = [(60, 120, 80), (70, 140, 150), (110, 150, 160), (90, 100, 90), (50, 90, 60)]
-    grass = jitter(grass_options[int(rng.integers(len(grass_options)))], 15)
-    return Looks(asphalt=asphalt, grass=grass, white=jitter((235, 235, 235), 12),
-                 yellow=jitter((40, 190, 230), 15), sky_top=jitter((225, 170, 110), 25),
-                 sky_horizon=jitter((235, 215, 195), 20), texture=float(rng.uniform(0.04, 0.2)),
-                 worn_prob=float(min(0.6, rng.uniform(0, 0.25) * strength)),
-                 fade_prob=float(min(0.8, rng.uniform(0, 0.3) * strength)),
-                 shadows=int(round(rng.integers(0, 4) * strength)))
-
-
-def random_style(rng: np.random.Generator) -> RoadStyle:
-    lanes = 2 if rng.random() < 0.8 else 1
-    centre = ["dashed", "dashed", "solid", "double", "none"][int(rng.integers(5))]
-    centre_color = "yellow" if rng.random() < 0.35 else "white"
-    return RoadStyle(lane_width=float(rng.uniform(2.8, 3.8)), lanes=lanes,
-                     shoulder=float(rng.uniform(0.2, 0.9)), line_width=float(rng.uniform(0.1, 0.25)),
-                     edge_line="dashed" if rng.random() < 0.1 else "solid", centre_line=centre,
-                     edge_color="yellow" if rng.random() < 0.1 else "white", centre_color=centre_color,
-                     dash_m=float(rng.uniform(1.5, 4.0)), gap_m=float(rng.uniform(1.5, 6.0)))
+BARRIER_HEIGHT_M = 1.0
+BARRIER_LEAN_DEG = 15.0  # leaning outward, away from the road
+BARRIER_STEP_M = 1.0  # barrier quads are this long
 
 
 @dataclass(frozen=True)
@@ -87,6 +49,37 @@ class Paint:
                    centers, radii)
 
 
+@dataclass(frozen=True)
+class Barriers:
+    """Upright barrier quads: base points (Q,2,2) world metres (start, end), the outward lean of
+    the top (Q,2) metres, and per-quad bounding circles for culling."""
+
+    base: np.ndarray
+    lean: np.ndarray
+    centers: np.ndarray
+    height_m: float = BARRIER_HEIGHT_M
+
+    @classmethod
+    def from_lines(cls, lines: list[np.ndarray], height_m: float = BARRIER_HEIGHT_M,
+                   lean_deg: float = BARRIER_LEAN_DEG) -> "Barriers":
+        from signlane.world.via_geometry import outward
+        quads, leans = [], []
+        for line in lines:
+            s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(line, axis=0).T))])
+            if s[-1] < 0.2:
+                continue
+            n = max(1, int(round(s[-1] / BARRIER_STEP_M)))
+            at = np.interp(np.linspace(0, s[-1], n + 1), s, np.arange(len(line)))
+            pts = np.column_stack([np.interp(at, np.arange(len(line)), line[:, k]) for k in (0, 1)])
+            normals = outward(pts)
+            quads.append(np.stack([pts[:-1], pts[1:]], axis=1))
+            leans.append(0.5 * (normals[:-1] + normals[1:]) * height_m * math.sin(math.radians(lean_deg)))
+        if not quads:
+            return cls(np.zeros((0, 2, 2)), np.zeros((0, 2)), np.zeros((0, 2)), height_m)
+        base = np.concatenate(quads)
+        return cls(base, np.concatenate(leans), base.mean(axis=1), height_m * math.cos(math.radians(lean_deg)))
+
+
 @dataclass
 class Scene:
     track: Track
@@ -97,103 +90,25 @@ class Scene:
     texture_m: float  # metres covered by one texture tile
     panorama: np.ndarray  # (h, w, 3) uint8 background around the horizon, 360 degrees
     seed: int = 0
+    barriers: Barriers | None = None
     sprite_cache: dict = field(default_factory=dict, repr=False)
 
 
-def _band(pts: np.ndarray, normals: np.ndarray, d0: float, d1: float) -> np.ndarray:
-    """Polygon of the strip between lateral offsets d0 and d1 (metres, + = right)."""
-    a = pts + d0 * normals
-    b = pts + d1 * normals
-    return np.concatenate([a, b[::-1]])
-
-
-def _frame(pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    d = np.gradient(pts, axis=0)
-    d /= np.maximum(np.hypot(d[:, 0], d[:, 1]), 1e-12)[:, None]
-    s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(pts, axis=0).T))])
-    return np.column_stack([d[:, 1], -d[:, 0]]), s
-
-
-def _dashes(pts, normals, s, d0, d1, dash, gap) -> list[np.ndarray]:
-    """Dash polygons along the strip; the period is fitted to the piece length."""
-    length = s[-1]
-    period = dash + gap
-    n = max(1, int(round(length / period)))
-    period = length / n
-    frac = dash / (dash + gap)
-    out = []
-    for k in range(n):
-        a, b = k * period + 0.5 * (1 - frac) * period, k * period + 0.5 * (1 + frac) * period
-        i0, i1 = np.searchsorted(s, a), np.searchsorted(s, b)
-        if i1 - i0 >= 1:
-            out.append(_band(pts[i0:i1 + 1], normals[i0:i1 + 1], d0, d1))
-    return out
-
-
-def _line(pts, normals, s, offset, width, kind, style) -> list[np.ndarray]:
-    h = width / 2
-    if kind == "none":
-        return []
-    if kind == "double":
-        g = style.double_gap / 2 + h
-        return [_band(pts, normals, offset - g - h, offset - g + h), _band(pts, normals, offset + g - h, offset + g + h)]
-    if kind == "dashed":
-        return _dashes(pts, normals, s, offset - h, offset + h, style.dash_m, style.gap_m)
-    return [_band(pts, normals, offset - h, offset + h)]
-
-
-def road_polygons(pts: np.ndarray, style: RoadStyle, with_paint: bool = True) -> list[tuple[int, np.ndarray]]:
-    """(layer, polygon) list for a road piece along centreline pts (world metres)."""
-    normals, s = _frame(pts)
-    hw = style.road_half_width
-    polys = [(ASPHALT, _band(pts, normals, -hw, hw))]
-    if not with_paint:
-        return polys
-    edge = style.lanes * style.lane_width / 2
-    ec, cc = PAINT[style.edge_color], PAINT[style.centre_color]
-    for off in (-edge, edge):
-        polys += [(ec, p) for p in _line(pts, normals, s, off, style.line_width, style.edge_line, style)]
-    if style.lanes == 2:
-        polys += [(cc, p) for p in _line(pts, normals, s, 0.0, style.line_width, style.centre_line, style)]
-    return polys
-
-
-def junction_polygons(track: Track, tile) -> list[tuple[int, np.ndarray]]:
-    """A square of asphalt with road stubs to each open side; edge lines on closed sides."""
-    style = track.style
-    hw = style.road_half_width
-    half_cell = 0.5
-    c = track.map_to_world(np.array([[tile.col + track.grid_origin[0], tile.row + track.grid_origin[1]]]))[0]
-    cm = track.cell_m
-    polys: list[tuple[int, np.ndarray]] = [(ASPHALT, c + np.array([[-hw, -hw], [hw, -hw], [hw, hw], [-hw, hw]]))]
-    open_sides = {p.side for p in tile.ports}
-    edge = style.lanes * style.lane_width / 2
-    for side, (du, dv) in SIDES.items():
-        out = np.array([du, -dv], float)  # world direction of that side
-        if side in open_sides:
-            a = c + out * hw
-            b = c + out * half_cell * cm
-            n = max(2, int(np.hypot(*(b - a)) / 0.25))
-            pts = a + np.linspace(0, 1, n)[:, None] * (b - a)
-            polys += road_polygons(pts[::-1], style)  # drawn travelling into the junction
-        else:
-            left = np.array([-out[1], out[0]])
-            pts = c + out * edge + np.linspace(-hw, hw, 8)[:, None] * left
-            h = style.line_width / 2
-            polys.append((PAINT[style.edge_color], np.concatenate([pts - out * h, (pts + out * h)[::-1]])))
-    return polys
-
-
-def _tile_paint(track: Track, tile, looks: Looks, rng: np.random.Generator) -> list[tuple[int, np.ndarray, bool]]:
-    if tile.junction:
-        polys = junction_polygons(track, tile)
+def _tile_paint(track: Track, tile, looks: Looks, rng: np.random.Generator,
+                barrier_lines: list) -> list[tuple[int, np.ndarray, bool]]:
+    if track.style.kind == "via":
+        surfaces, kerbs, lines = tile_geometry(track, tile)
+        polys = [(ASPHALT, p) for p in surfaces]
+        if track.style.kerb_m > 0:
+            polys += [(KERB, kerb_band(e, track.style.kerb_m)) for e in kerbs]
+        barrier_lines += lines
     else:
-        polys = road_polygons(track.centreline(tile, tile.ports[0], tile.ports[1]), track.style)
+        polys = tile_polygons(track, tile)
     kept = []
     for layer, p in polys:
-        if layer != ASPHALT and rng.random() < looks.worn_prob:
+        if layer not in (ASPHALT, KERB) and rng.random() < looks.worn_prob:
             continue  # worn away: neither drawn nor labelled
-        kept.append((layer, p, bool(layer != ASPHALT and rng.random() < looks.fade_prob)))
+        kept.append((layer, p, bool(layer not in (ASPHALT, KERB) and rng.random() < looks.fade_prob)))
     for _ in range(int(rng.integers(0, looks.shadows + 1)) if looks.shadows else 0):
         kept.append((SHADOW, _shadow_polygon(track, tile, rng), False))
     return kept
@@ -226,11 +141,28 @@ def _noise_texture(rng: np.random.Generator, size: int = 256) -> np.ndarray:
 
 
 def _panorama(rng: np.random.Generator, looks: Looks, width: int = 1440, height: int = 160) -> np.ndarray:
-    """360-degree background band; the horizon is the bottom row. Hills, trees and buildings."""
+    """360-degree background band; the horizon is the bottom row."""
     img = np.zeros((height, width, 3), np.uint8)
     top, hor = np.array(looks.sky_top, float), np.array(looks.sky_horizon, float)
     t = np.linspace(0, 1, height)[:, None]
     img[:] = (top * (1 - t) + hor * t).astype(np.uint8)[:, None, :]
+    if looks.scenery == "walls":
+        # VIA's world ends in grey walls 5 m high at +-100 m: a thin band just above the horizon
+        wall = _jitter_grey(rng, 150)
+        img[height - int(rng.integers(3, 7)):] = wall
+        return img
+    _hills(img, rng, looks)
+    return img
+
+
+def _jitter_grey(rng: np.random.Generator, grey: int) -> tuple[int, int, int]:
+    g = int(np.clip(grey + rng.normal(0, 12), 60, 230))
+    return (g, g, g)
+
+
+def _hills(img: np.ndarray, rng: np.random.Generator, looks: Looks) -> None:
+    """Hills, trees and buildings along the horizon of a panorama (in place)."""
+    height, width = img.shape[:2]
     x = np.arange(width)
     hill = np.zeros(width)
     for k in (1, 2, 3, 5, 8):
@@ -252,28 +184,55 @@ def _panorama(rng: np.random.Generator, looks: Looks, width: int = 1440, height:
             cv2.rectangle(img, (x0 - 1, base - h // 2), (x0 + 1, height), (40, 60, 80), -1)
             green = (int(rng.integers(20, 80)), int(rng.integers(70, 150)), int(rng.integers(20, 90)))
             cv2.ellipse(img, (x0, base - h + r), (r, int(r * 1.3)), 0, 0, 360, green, -1, cv2.LINE_AA)
-    return img
 
 
 def build_scene(track: Track, seed: int = 0, looks: Looks | None = None,
                 randomise: bool = False, looks_strength: float = 1.0) -> Scene:
     """Precompute everything the renderer needs for a track; the same seed gives the same scene."""
     rng = np.random.default_rng(seed)
-    looks = looks or (random_looks(rng, looks_strength) if randomise else Looks())
-    paint = Paint.from_polygons([p for t in track.tiles for p in _tile_paint(track, t, looks, rng)])
-    objects = list(track.signs) + list(track.distractors) + _roadside_distractors(track, rng)
-    return Scene(track, looks, paint, objects, _noise_texture(rng), float(rng.uniform(4, 10)),
-                 _panorama(rng, looks), seed)
+    looks = looks or (random_looks(rng, looks_strength, track.style) if randomise
+                      else default_looks(track.style, track.background))
+    lines: list[np.ndarray] = []
+    paint = Paint.from_polygons([p for t in track.tiles for p in _tile_paint(track, t, looks, rng, lines)])
+    objects = list(track.signs) + list(track.distractors) + _roadside_distractors(track, rng, looks.distractors)
+    texture = _noise_texture(rng)
+    texture_m = looks.texture_m or float(rng.uniform(4, 10))
+    barriers = Barriers.from_lines(_off_other_roads(track, paint, lines)) if lines else None
+    return Scene(track, looks, paint, objects, texture, texture_m, _panorama(rng, looks), seed, barriers)
 
 
-def _roadside_distractors(track: Track, rng: np.random.Generator, density: float = 0.08) -> list[WorldObject]:
+def _off_other_roads(track: Track, paint: Paint, lines: list[np.ndarray], px_per_m: float = 4.0) -> list[np.ndarray]:
+    """Barrier lines split where they would stand on road (a neighbouring tile's carriageway):
+    VIA's prefabs would overlap there; a car could not drive through them."""
+    x0, y0, x1, y1 = track.bounds_m(margin=10.0)
+    w, h = int((x1 - x0) * px_per_m) + 1, int((y1 - y0) * px_per_m) + 1
+    road = np.zeros((h, w), np.uint8)
+    for k in np.nonzero(paint.layers == ASPHALT)[0]:
+        poly = paint.verts[paint.starts[k]:paint.starts[k + 1]]
+        pix = np.column_stack([(poly[:, 0] - x0) * px_per_m, (y1 - poly[:, 1]) * px_per_m])
+        cv2.fillPoly(road, [np.round(pix * 16).astype(np.int32)], 1, cv2.LINE_8, 4)
+    out = []
+    for line in lines:
+        pix = np.column_stack([(line[:, 0] - x0) * px_per_m, (y1 - line[:, 1]) * px_per_m]).astype(int)
+        pix = np.clip(pix, 0, [w - 1, h - 1])
+        free = road[pix[:, 1], pix[:, 0]] == 0
+        # runs of free points
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], free.astype(int), [0]])))
+        for a, b in zip(edges[::2], edges[1::2]):
+            if b - a >= 2:
+                out.append(line[a:b])
+    return out
+
+
+def _roadside_distractors(track: Track, rng: np.random.Generator, density: float) -> list[WorldObject]:
     """Red/blue non-sign objects, cones, boxes and billboards beside plain road tiles."""
     out = []
     hw = track.style.road_half_width
     for tile in track.tiles:
         if tile.junction:
             continue
-        for _ in range(int(rng.poisson(density * len(tile.cells)))):
+        # density is per 12 m of road, whatever the cell size
+        for _ in range(int(rng.poisson(density * len(tile.cells) * track.cell_m / 12.0))):
             pts = track.centreline(tile, tile.ports[0], tile.ports[1])
             i = int(rng.integers(len(pts)))
             j = min(i + 1, len(pts) - 1) if i + 1 < len(pts) else i - 1

@@ -1,48 +1,79 @@
-"""Top-down pictures of a track (road, paint, signs, a driven path) for people to look at."""
+"""Top-down pictures of a track for people to look at, drawn the way VIA's minimap is: north up,
+the map's grid centred on the world origin at 25 pixels a cell, grey road, white kerbs, the
+ground of its bg_id; optionally signs and a driven path on top."""
 from __future__ import annotations
 
 import cv2
 import numpy as np
 
 from signlane.world.art import SIGN_NAMES
-from signlane.world.scene import ASPHALT, SHADOW, Scene
+from signlane.world.scene import ASPHALT, KERB, SHADOW, Scene
 
 SIGN_BGR = {"stop": (40, 40, 220), "left": (200, 120, 0), "right": (200, 120, 0), "straight": (200, 120, 0),
             "no_left": (60, 60, 200), "no_right": (60, 60, 200)}
+# VIA's minimap colours (BGR), read off its renders (../shared/via/minimaps)
+MINIMAP_ROAD = (73, 71, 70)
+MINIMAP_GROUND = {"grass": (41, 83, 58), "ground": (24, 37, 51), "none": (110, 108, 106)}
+PX_PER_CELL = 25
 
 
-def draw_topdown(scene: Scene, px_per_m: float | None = None, path_xy: np.ndarray | None = None,
-                 marks: list[tuple[float, float, tuple[int, int, int]]] | None = None) -> np.ndarray:
-    """uint8 BGR picture of the scene from above, north up; optional driven path (N,2 world m).
-    The default scale makes the longer side about 900 pixels."""
+def minimap_frame(track, px_per_cell: float = PX_PER_CELL, margin_cells: float = 0.0):
+    """(x0, y1, px_per_m, width, height): the picture covers the grid, centred on the world
+    origin as VIA's minimap is, plus a margin (and any tile that reaches beyond the grid)."""
+    k = px_per_cell / track.cell_m
+    half_w, half_h = track.cols / 2 * track.cell_m, track.rows / 2 * track.cell_m
+    cells = np.array([c for t in track.tiles for c in t.footprint], float) + np.array(track.grid_origin)
+    (bx0, by0), (bx1, by1) = (cells.min(axis=0) - 0.5) * track.cell_m, (cells.max(axis=0) + 0.5) * track.cell_m
+    m = margin_cells * track.cell_m
+    x0, x1 = min(-half_w, bx0) - m, max(half_w, bx1) + m
+    y0, y1 = min(-half_h, by0) - m, max(half_h, by1) + m
+    return x0, y1, k, int(round((x1 - x0) * k)), int(round((y1 - y0) * k))
+
+
+def road_mask(track, scene: Scene, px_per_cell: float = PX_PER_CELL) -> np.ndarray:
+    """uint8 0/255 mask of the road surface in the minimap frame (kerbs and paint excluded)."""
+    x0, y1, k, w, h = minimap_frame(track, px_per_cell)
+    mask = np.zeros((h, w), np.uint8)
+    p = scene.paint
+    for i in np.nonzero(p.layers == ASPHALT)[0]:
+        poly = p.verts[p.starts[i]:p.starts[i + 1]]
+        pix = np.column_stack([(poly[:, 0] - x0) * k, (y1 - poly[:, 1]) * k])
+        cv2.fillPoly(mask, [np.round(pix * 16).astype(np.int32)], 255, cv2.LINE_8, 4)
+    return mask
+
+
+def draw_topdown(scene: Scene, px_per_cell: float = PX_PER_CELL, path_xy: np.ndarray | None = None,
+                 marks: list[tuple[float, float, tuple[int, int, int]]] | None = None,
+                 signs: bool = True) -> np.ndarray:
+    """uint8 BGR picture of the scene from above (see the module docstring); path_xy (N,2) world
+    metres is drawn in red, marks as crosses."""
     track = scene.track
-    x0, y0, x1, y1 = track.bounds_m(margin=5.0)
-    px_per_m = px_per_m or 900.0 / max(x1 - x0, y1 - y0)
-    W, H = int((x1 - x0) * px_per_m), int((y1 - y0) * px_per_m)
-    img = np.full((H, W, 3), (70, 120, 80), np.uint8)
+    x0, y1, k, w, h = minimap_frame(track, px_per_cell)
+    img = np.full((h, w, 3), MINIMAP_GROUND.get(track.background, MINIMAP_GROUND["none"]), np.uint8)
 
     def to_px(xy: np.ndarray) -> np.ndarray:
         xy = np.asarray(xy, float).reshape(-1, 2)
-        return np.column_stack([(xy[:, 0] - x0) * px_per_m, (y1 - xy[:, 1]) * px_per_m])
+        return np.column_stack([(xy[:, 0] - x0) * k, (y1 - xy[:, 1]) * k])
 
     p = scene.paint
     lk = scene.looks
-    colour = {ASPHALT: lk.asphalt, 1: lk.white, 2: lk.yellow}
-    order = np.argsort([{ASPHALT: 0, SHADOW: 9}.get(int(l), 1) for l in p.layers], kind="stable")
-    for k in order:
-        layer = int(p.layers[k])
+    colour = {ASPHALT: MINIMAP_ROAD, KERB: (245, 245, 245), 1: lk.white, 2: lk.yellow}
+    order = np.argsort([{ASPHALT: 0, SHADOW: 9}.get(int(layer), 1) for layer in p.layers], kind="stable")
+    for i in order:
+        layer = int(p.layers[i])
         if layer == SHADOW:
             continue
-        poly = np.round(to_px(p.verts[p.starts[k]:p.starts[k + 1]]) * 16).astype(np.int32)
+        poly = np.round(to_px(p.verts[p.starts[i]:p.starts[i + 1]]) * 16).astype(np.int32)
         cv2.fillPoly(img, [poly], colour.get(layer, lk.white), cv2.LINE_AA, 4)
-    for obj in scene.objects:
+    px_per_m = k
+    for obj in scene.objects if signs else []:
         c = to_px([[obj.x, obj.y]])[0]
         is_sign = obj.kind in SIGN_NAMES
         col = SIGN_BGR.get(obj.kind, (0, 200, 255)) if is_sign else (160, 160, 160)
-        r = max(2, int(1.2 * px_per_m)) if is_sign else max(1, int(0.5 * px_per_m))
+        r = max(3, int(0.6 * px_per_m)) if is_sign else max(1, int(0.3 * px_per_m))
         cv2.circle(img, tuple(int(v) for v in c), r, col, -1, cv2.LINE_AA)
         if is_sign:
-            tip = c + 2.5 * px_per_m * np.array([np.cos(obj.facing), -np.sin(obj.facing)])
+            tip = c + 2.0 * px_per_m * np.array([np.cos(obj.facing), -np.sin(obj.facing)])
             cv2.line(img, tuple(int(v) for v in c), tuple(int(v) for v in tip), col, 1, cv2.LINE_AA)
             cv2.putText(img, obj.kind, (int(c[0]) + r + 1, int(c[1]) - r), cv2.FONT_HERSHEY_SIMPLEX,
                         0.35, (255, 255, 255), 1, cv2.LINE_AA)

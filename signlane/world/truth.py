@@ -129,7 +129,8 @@ def _junction(route: Route, s: float) -> JunctionTruth | None:
             dist = leg.s0 - (s % route.length if route.closed else s)
             if dist < 0:
                 dist += route.length
-            exits = tuple(sorted(route.track.turn_of(leg.entry, p) for p in route.track.exits(leg.tile, leg.entry)))
+            exits = tuple(sorted(route.track.turn_of(leg.entry, p)
+                                 for p in route.track.viable_exits(leg.tile, leg.entry)))  # no dead ends
             return JunctionTruth(float(dist), exits, leg.turn)
     return None
 
