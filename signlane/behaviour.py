@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from signlane.control import PurePursuit
+from signlane.control import PurePursuit, path_curvature
 from signlane.junction import JunctionView
 from signlane.odometry import OdoPose
 from signlane.types import LaneEstimate
@@ -35,14 +35,17 @@ class BehaviourParams:
     approach_speed: float = 3.0
     junction_speed: float = 2.8
     lateral_accel: float = 2.0  # m/s^2 allowed in curves
+    curve_preview_m: float = 12.0  # how far along the traced lane a bend slows the car
     coast_decel: float = 1.5  # m/s^2 the car slows at with throttle 0
     stop_before_m: float = 3.0  # where to stop, metres before the sign
     stop_hold_s: float = 2.0
     stop_margin_s: float = 0.5  # held a little longer than required
     wheelbase_m: float = 1.8
-    right_radius_m: float = 5.0
+    right_radius_m: float = 5.0  # turns on a painted two-lane road (right-hand traffic)
     left_radius_m: float = 7.6
     lane_width_m: float = 3.2
+    kerbed_radius_m: float = 4.6  # turns on a kerbed carriageway (the car keeps its middle): VIA's
+    # car turns no tighter than 4.2 m
     commit_near_m: float = 12.0  # plan a junction once its side road starts this close
     instruction_range_m: float = 40.0  # a turn sign applies to a junction within this distance after it
 
@@ -62,6 +65,7 @@ class Behaviour:
 
     def reset(self) -> None:
         self.state = "cruise"
+        self.two_lane = True
         self.signs: list[SignMemory] = []
         self.path: np.ndarray | None = None  # junction path, odometry frame
         self.turn = ""
@@ -93,38 +97,55 @@ class Behaviour:
 
     # --- main step -----------------------------------------------------------------------------
     def step(self, t: float, pose: OdoPose, odo_m: float, speed: float, lane: LaneEstimate,
-             junction: JunctionView | None) -> tuple[float, float, str]:
-        """-> (steering [-1, 1], throttle [0, 1], state)."""
+             junction: JunctionView | None, two_lane: bool = True) -> tuple[float, float, str]:
+        """-> (steering [-1, 1], throttle [0, 1], state). `two_lane`: a painted road driven on its
+        right lane (False: a kerbed carriageway driven in its middle)."""
+        self.two_lane = two_lane
         self.signs = [m for m in self.signs if self._ahead(pose, m) > -self.p.instruction_range_m]
+        if self.path is None and junction is not None and odo_m > self.cooldown_until_m:
+            self._plan_junction(pose, lane, junction)
         if self.path is not None:
-            return self._junction_step(pose, odo_m, speed)
-        if junction is not None and odo_m > self.cooldown_until_m and self._plan_junction(pose, lane, junction):
-            return self._junction_step(pose, odo_m, speed)
+            steering, throttle, state = self._junction_step(pose, odo_m, speed)
+            stop = self._stop(t, pose, speed)  # a stop sign before the junction still holds
+            if stop is not None and stop[0] / self.p.max_speed <= throttle:
+                return steering, stop[0] / self.p.max_speed, stop[1]
+            return steering, throttle, state
         steering = self.follow.step(lane, speed)
         v, state = self._speed(t, pose, speed, lane)
         return steering, v / self.p.max_speed, state
 
-    def _speed(self, t: float, pose: OdoPose, speed: float, lane: LaneEstimate) -> tuple[float, str]:
+    def _stop(self, t: float, pose: OdoPose, speed: float) -> tuple[float, str] | None:
+        """Speed and state while a stop sign is pending (coast to a full stop before it, hold,
+        go), or None when none is."""
         p = self.p
         stop = self._pending(pose, {"stop"})
+        if stop is None:
+            return None
+        rem = self._ahead(pose, stop) - p.stop_before_m
+        if speed < 0.05 and rem < 6.0:
+            self.stopped_since = t if self.stopped_since is None else self.stopped_since
+            if t - self.stopped_since >= p.stop_hold_s + p.stop_margin_s:
+                stop.done = True
+                self.stopped_since = None
+                return p.approach_speed, "approach"
+            return 0.0, "stopped"
+        self.stopped_since = None
+        # the fastest speed from which coasting still stops in time
+        v = math.sqrt(2 * p.coast_decel * max(rem - 0.3, 0.0))
+        return min(v, p.approach_speed if rem > 0 else 0.0), "stopping"
+
+    def _speed(self, t: float, pose: OdoPose, speed: float, lane: LaneEstimate) -> tuple[float, str]:
+        p = self.p
+        stop = self._stop(t, pose, speed)
         if stop is not None:
-            rem = self._ahead(pose, stop) - p.stop_before_m
-            if speed < 0.05 and rem < 6.0:
-                self.stopped_since = t if self.stopped_since is None else self.stopped_since
-                if t - self.stopped_since >= p.stop_hold_s + p.stop_margin_s:
-                    stop.done = True
-                    self.stopped_since = None
-                    return p.approach_speed, "approach"
-                return 0.0, "stopped"
-            self.stopped_since = None
-            # the fastest speed from which coasting still stops in time
-            v = math.sqrt(2 * p.coast_decel * max(rem - 0.3, 0.0))
-            return min(v, p.approach_speed if rem > 0 else 0.0), "stopping"
+            return stop
         if not lane.found:
             return 0.0, "lost"
         v = p.cruise_speed
-        if abs(lane.curvature) > 1e-4:
-            v = min(v, math.sqrt(p.lateral_accel / abs(lane.curvature)))
+        # the bend ahead: the lane's curvature, and the sharpest circle to its traced centre line
+        k = max(abs(lane.curvature), path_curvature(lane.path_m, p.curve_preview_m))
+        if k > 1e-4:
+            v = min(v, math.sqrt(p.lateral_accel / k))
         if self._pending(pose, TURN_SIGNS) is not None:
             return min(v, p.approach_speed), "approach"
         return v, "cruise"
@@ -132,19 +153,17 @@ class Behaviour:
     # --- junctions ------------------------------------------------------------------------------
     def _exits(self, j: JunctionView) -> set[str] | None:
         """Turns available, or None when this is not (yet) a junction: a curve opens to one
-        side only and does not go on straight."""
-        exits = set()
-        if j.left is not None and j.left.closed:
-            exits.add("left")
-        if j.right is not None and j.right.closed:
-            exits.add("right")
-        if not exits:
+        side only and does not go on straight. A dead end is never an exit; a T-junction reached
+        along its stem whose one arm is a dead end leaves one exit (a forced turn)."""
+        sides = {name: o for name, o in (("left", j.left), ("right", j.right)) if o is not None and o.closed}
+        if not sides:
             return None
+        exits = {name for name, o in sides.items() if not o.dead}
         if j.straight:
             exits.add("straight")
-        if len(exits) < 2:
-            return None
-        return exits
+        if len(exits) >= 2 or (len(sides) == 2 and exits):
+            return exits
+        return None
 
     def choose(self, exits: set[str], instruction: str | None) -> str:
         if instruction in ("left", "right", "straight") and instruction in exits:
@@ -169,7 +188,7 @@ class Behaviour:
         if sign is not None:
             sign.done = True
         lateral = -lane.offset * (lane.lane_width_m or self.p.lane_width_m) if lane.found else 0.0
-        self.path = pose.to_world(_junction_path(self.turn, y_c, lateral, self.p))
+        self.path = pose.to_world(_junction_path(self.turn, y_c, lateral, self.p, getattr(self, "two_lane", True)))
         self.follow.reset()
         return True
 
@@ -189,17 +208,19 @@ class Behaviour:
         return steering, v / self.p.max_speed, f"junction-{self.turn}"
 
 
-def _junction_path(turn: str, y_c: float, lateral_m: float, p: BehaviourParams) -> np.ndarray:
+def _junction_path(turn: str, y_c: float, lateral_m: float, p: BehaviourParams, two_lane: bool = True) -> np.ndarray:
     """The path through a junction in the car frame (x right, y ahead), from the car's lane
-    (lateral_m: the lane centre's x) to the chosen exit lane, sampled every 0.25 m."""
-    h = p.lane_width_m / 2
+    (lateral_m: the lane centre's x) to the chosen exit lane, sampled every 0.25 m. On a
+    two-lane road the exit lane is the right one of the side road; on a kerbed carriageway its
+    middle, reached with the same radius either way."""
+    h = p.lane_width_m / 2 if two_lane else 0.0
     if turn == "straight":
         ys = np.arange(0.0, y_c + 10.0, 0.25)
         return np.column_stack([np.full_like(ys, lateral_m), ys])
     if turn == "right":
-        r, y_exit, sgn = p.right_radius_m, y_c - h, 1.0
+        r, y_exit, sgn = (p.right_radius_m if two_lane else p.kerbed_radius_m), y_c - h, 1.0
     else:
-        r, y_exit, sgn = p.left_radius_m, y_c + h, -1.0
+        r, y_exit, sgn = (p.left_radius_m if two_lane else p.kerbed_radius_m), y_c + h, -1.0
     y0 = max(y_exit - r, 0.5)
     lead = np.column_stack([np.full(int(y0 / 0.25) + 1, lateral_m), np.linspace(0, y0, int(y0 / 0.25) + 1)])
     a = np.linspace(0, math.pi / 2, max(8, int(r * math.pi / 2 / 0.25)))

@@ -30,7 +30,7 @@ class CameraConfig:
 
 @dataclass(frozen=True)
 class LanesConfig:
-    method: str = "sliding-window"
+    method: str = "auto"  # road-edges on a kerbed carriageway, sliding-window on painted lanes (lanes/auto.py)
     variant: str = "robust"  # robust | published
     model: str = ""  # a learned method's ONNX file (segnet); "" = the shipped signlane/models/lanes.onnx
 

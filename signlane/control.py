@@ -43,6 +43,29 @@ def centre_x_at(lane: LaneEstimate, y_m: float) -> float:
     return c + b * y_m + a * y_m * y_m
 
 
+def path_point(path_m: np.ndarray | None, dist_m: float, min_m: float = 3.0) -> tuple[float, float] | None:
+    """The first point of a traced centre line (N,2 ground metres) at least dist_m from the car,
+    or its last point when it is shorter (and still min_m away); None without a usable path."""
+    if path_m is None or len(path_m) < 2:
+        return None
+    d = np.hypot(path_m[:, 0], path_m[:, 1])
+    far = np.flatnonzero(d >= dist_m)
+    i = int(far[0]) if len(far) else len(path_m) - 1
+    if d[i] < min_m:
+        return None
+    return float(path_m[i, 0]), float(path_m[i, 1])
+
+
+def path_curvature(path_m: np.ndarray | None, within_m: float) -> float:
+    """The sharpest bend (1/m, unsigned) the car would need to reach any point of a traced centre
+    line within within_m: 2|x| / (x^2 + y^2), the pure-pursuit circle to that point."""
+    if path_m is None or len(path_m) < 2:
+        return 0.0
+    d2 = path_m[:, 0] ** 2 + path_m[:, 1] ** 2
+    sel = (d2 <= within_m ** 2) & (d2 > 4.0)
+    return float(np.max(2 * np.abs(path_m[sel, 0]) / d2[sel])) if sel.any() else 0.0
+
+
 class PurePursuit:
     """Steer the bicycle model towards the lane centre `lookahead` metres ahead."""
 
@@ -59,7 +82,8 @@ class PurePursuit:
             self.last *= 0.8  # drift back to straight while the lane is lost
             return self.last
         ld = self.lookahead + self.per_mps * max(speed, 0.0)
-        self.last = self.steer_to(centre_x_at(lane, ld), ld)
+        target = path_point(lane.path_m, ld)
+        self.last = self.steer_to(*target) if target is not None else self.steer_to(centre_x_at(lane, ld), ld)
         return self.last
 
     def steer_to(self, x_m: float, y_m: float) -> float:

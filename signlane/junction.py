@@ -29,6 +29,7 @@ class Opening:
     near_m: float  # ground y where the side road begins
     far_m: float  # where it ends (or the view ends: see `closed`)
     closed: bool  # the far edge was seen
+    dead: bool = False  # the side road visibly ends (a dead end): never an exit
 
     @property
     def centre_m(self) -> float:
@@ -202,3 +203,75 @@ class JunctionDetector:
                 block = mask[r0:r1, self._col(-lw):self._col(0.0) + 1] > 0
                 straight = bool(block.mean() > 0.5)
         return JunctionView(out["left"], out["right"], straight, mask)
+
+
+# --- junctions of a kerbed carriageway, read from the road-edges scan ---------------------------
+@dataclass(frozen=True)
+class ScanJunctionParams:
+    min_gap_m: float = 1.2  # a side opening: road at least this far beyond where the edge should be
+    min_open_m: float = 2.5  # shortest opening (VIA's side roads are 4 m wide)
+    row_gap_m: float = 0.4  # open rows this close together are one opening
+    resume_m: float = 1.0  # the edge back (or the road's end) this soon after: the opening is closed
+    judge_beyond_m: float = 6.5  # a side road is judged a dead end only where the view reaches this far past the edge
+    dead_reach_m: float = 5.5  # ... and the road stops within this far past the edge
+    straight_m: float = 1.5  # road on both edges this far past a junction: it goes on straight
+    dead_ahead_m: float = 6.0  # the road ending this soon past a junction: straight on is a dead end
+
+
+def view_from_scan(scan, params: ScanJunctionParams | None = None) -> JunctionView:
+    """Openings beside the carriageway and whether it goes on straight, from a RoadScan of
+    signlane/lanes/road_edges.py. An opening is a run of rows where the road reaches well past
+    the edge the rows before carried on (the edge 'jumped') while that edge is in view; it is
+    closed when the edge comes back in line after it (a side road, not a bend: a bend moves its
+    edges smoothly, or turns away for good), or, with both sides open, where the road ends just
+    beyond (the far side of a T-junction reached along its stem). A side road whose end is in
+    view is a dead end, as is straight on where the road visibly stops just past the junction."""
+    p = params or ScanJunctionParams()
+    if scan is None or len(scan.y) < 4:
+        return JunctionView(None, None, None)
+    found = {}
+    for side, run, edge, ok, seen, sgn in (("left", scan.run_l, scan.edge_l, scan.ok_l, scan.seen_l, -1),
+                                           ("right", scan.run_r, scan.edge_r, scan.ok_r, scan.seen_r, 1)):
+        beyond = sgn * (run - edge)
+        view = sgn * (seen - edge)  # how far past the edge the ground is in view
+        open_rows = np.flatnonzero(~ok & (beyond > p.min_gap_m) & (view > 0.5))
+        found[side] = _opening(scan, open_rows, beyond, view, ok, p)
+    ends = scan.stop == "lost"
+    both = found["left"] is not None and found["right"] is not None
+    sides = {}
+    for side, o in found.items():
+        if o is None:
+            sides[side] = None
+            continue
+        near, far, resumed, dead = o
+        closed = resumed or (both and ends and scan.y[-1] - far <= p.resume_m)
+        sides[side] = Opening(near, far, bool(closed), dead)
+    straight = None
+    opened = [o for o in sides.values() if o is not None]
+    if opened:
+        far = max(o.far_m for o in opened)
+        past = scan.y[scan.ok_l & scan.ok_r & (scan.y > far)]
+        straight = bool(len(past) and past.max() - far >= p.straight_m)
+        if straight and ends and scan.y[-1] - far < p.dead_ahead_m:
+            straight = False  # the road stops just past the junction: a dead end ahead
+    return JunctionView(sides["left"], sides["right"], straight)
+
+
+def _opening(scan, rows: np.ndarray, beyond: np.ndarray, view: np.ndarray, ok: np.ndarray,
+             p: ScanJunctionParams):
+    """(near, far, resumed, dead) of the nearest group of open rows long enough, or None."""
+    if len(rows) == 0:
+        return None
+    step = float(np.median(np.abs(np.diff(scan.y)))) if len(scan.y) > 1 else 0.125
+    end = 0
+    while end + 1 < len(rows) and (rows[end + 1] - rows[end]) * step <= p.row_gap_m:
+        end += 1
+    group = rows[: end + 1]
+    near, far = float(scan.y[group[0]]), float(scan.y[group[-1]])
+    if far - near < p.min_open_m and group[-1] < len(scan.y) - 1:
+        return None if end + 1 >= len(rows) else _opening(scan, rows[end + 1:], beyond, view, ok, p)
+    after = np.flatnonzero(ok[group[-1] + 1:])
+    resumed = bool(len(after) and scan.y[group[-1] + 1 + after[0]] - far <= p.resume_m)
+    judged = view[group] >= p.judge_beyond_m
+    dead = bool(judged.sum() >= 3 and np.median(beyond[group][judged]) < p.dead_reach_m)
+    return near, far, resumed, dead

@@ -35,6 +35,10 @@ class LaneEstimate:
     right: np.ndarray | None = None
     debug_mask: np.ndarray | None = None
     lane_width_m: float = 0.0  # measured (or nominal) width; 0 = unknown
+    basis: str = "paint"  # what the boundaries are: "paint" (lane lines) | "edges" (the road's own edges)
+    # the lane's centre line as the method traced it, ground metres (x right, y ahead), near to
+    # far, or None: followed directly where a fitted curve cannot bend as tightly as the road
+    path_m: np.ndarray | None = None
 
 
 @dataclass(frozen=True)

@@ -21,7 +21,8 @@ MethodFn = Callable[[np.ndarray, Camera, Any, Any], tuple[LaneEstimate, Any]]
 _REGISTRY: dict[str, tuple[MethodFn, type]] = {}
 # modules that register methods when imported (kept lazy so importing signlane stays light)
 _MODULES = {"canny-scan": "canny_scan", "sliding-window": "sliding_window", "color-hough": "color_hough",
-            "vector-spline": "vector_spline", "segnet": "segnet"}
+            "vector-spline": "vector_spline", "segnet": "segnet", "road-edges": "road_edges",
+            "auto": "auto"}
 
 
 def register(name: str, params_type: type) -> Callable[[MethodFn], MethodFn]:

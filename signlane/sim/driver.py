@@ -22,7 +22,8 @@ import numpy as np
 from signlane import lanes
 from signlane.behaviour import Behaviour, BehaviourParams
 from signlane.config import Config
-from signlane.junction import JunctionDetector
+from signlane.junction import JunctionDetector, view_from_scan
+from signlane.lanes.auto import road_state
 from signlane.odometry import Odometry, OdoPose
 from signlane.sim.protocol import Telemetry
 from signlane.types import Command, Frame, Perception, SignDetection
@@ -132,7 +133,12 @@ class Driver:
         lane = self.lane(small)
         t1 = time.perf_counter()
         timing["lanes"] = (t1 - t0) * 1e3
-        view = self.junctions.detect(small, lane.lane_width_m or None)
+        road = road_state(self.lane.state)
+        two_lane = road is None or road.two_lane
+        if two_lane:  # painted lanes: openings where the edge line is missing (signlane/junction.py)
+            view = self.junctions.detect(small, lane.lane_width_m or None)
+        else:  # a kerbed carriageway: openings where its edges jump away
+            view = view_from_scan(road.scan)
         t2 = time.perf_counter()
         timing["junction"] = (t2 - t1) * 1e3
         signs = self._signs(image, pose)
@@ -140,9 +146,10 @@ class Driver:
         timing["signs"] = (t3 - t2) * 1e3
         was = self.behaviour.path is not None
         steering, throttle, state = self.behaviour.step(t, pose, self.odometry.distance_m, telemetry.speed,
-                                                        lane, view)
-        if was and self.behaviour.path is None:
-            self.lane.reset()  # the tracker's last fit is from before the junction
+                                                        lane, view, two_lane)
+        if was and self.behaviour.path is None:  # the tracker's last fit is from before the junction
+            keep = getattr(self.lane.state, "forget_tracks", None)
+            self.lane.state = keep() if keep else None
         timing["control"] = (time.perf_counter() - t3) * 1e3
         if self.scaled != (w, h):  # report the lane in the frame's own pixels
             k = w / self.scaled[0]

@@ -1,0 +1,258 @@
+"""`road-edges`: the carriageway from its surface, for roads without lane paint (VIA's one 4 m
+carriageway between white kerbs), and whether a centre line is painted on it.
+
+In a bird's-eye view of the ground ahead, a pixel is road when its colour is close to the road
+just in front of the car (the car stands on the road: that patch is a free, per-frame colour
+reference, as in `signlane.junction`), or bright and colourless (kerbs and paint). Row by row
+from the car outwards, the run of road pixels around the last row's centre gives the two edges;
+an edge that jumps away from where its last rows lead (a side road opening, a field of
+road-coloured ground) is not an edge on that row, and the other edge and the measured width
+stand in for it. The edges are fitted as lane boundaries (shared geometry, `lanes.geometry`), so
+the lane is the whole carriageway and `offset` is from its middle.
+
+The state carries the measured width and how much of the carriageway's middle has looked like a
+painted line (averaged over frames): `centre_paint` above `paint_share` means a two-lane road.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import cv2
+import numpy as np
+
+from signlane.camera import BirdsEye, Camera
+from signlane.lanes import register
+from signlane.lanes.geometry import camera_for, estimate_from_fits, fit_boundary
+from signlane.types import LaneEstimate
+
+NAME = "road-edges"
+_OPEN = np.ones((3, 3), np.uint8)
+
+
+@dataclass(frozen=True)
+class RoadEdgesParams:
+    x_half_m: float = 12.0  # wide enough to see a side road end (a dead end) from the junction
+    depth_m: float = 14.0  # bird's-eye depth beyond the nearest visible ground
+    px_per_m: float = 8.0
+    lab_tol: tuple[float, float, float] = (26.0, 9.0, 9.0)
+    shadow_floor: float = 0.35  # shadowed road keeps at least this share of the reference lightness
+    bright_l: float = 30.0  # kerbs and paint: this much lighter than the road, and colourless
+    width_m: float = 4.0  # nominal carriageway width (VIA's); the measured one takes over
+    min_width_m: float = 2.2
+    max_width_m: float = 9.0  # wider rows are a junction or a bend seen side-on
+    jump_m: float = 0.35  # an edge further than this from where its last rows lead ...
+    step_m: float = 0.5  # ... and further than this from its last row is no edge
+    fit_near_m: float = 9.0  # boundaries are fitted over their nearest this many metres
+    min_rows: int = 8  # edge rows needed for a boundary
+    paint_band_m: float = 0.35  # the middle band looked at for a painted centre line
+    paint_share: float = 0.12  # share of middle-band rows with paint that makes a two-lane road
+    paint_memory: float = 0.9  # weight of the past in the centre-paint average
+
+    @classmethod
+    def published(cls) -> "RoadEdgesParams":
+        return cls()  # no published source: the robust method is the only variant
+
+
+@dataclass(frozen=True)
+class RoadEdgesState:
+    width_m: float | None = None
+    centre_paint: float | None = None  # running share of middle rows that show a painted line
+    bev: BirdsEye | None = None
+    scan: "RoadScan | None" = None  # the last frame's scan (junctions are read from it)
+    road_lab: tuple[float, float, float] | None = None  # the road's colour, averaged over frames
+
+    @property
+    def two_lane(self) -> bool:
+        return self.centre_paint is not None and self.centre_paint > RoadEdgesParams.paint_share
+
+    def forget_tracks(self) -> "RoadEdgesState":
+        """What outlives a break in following (a junction crossed on a planned path): the road's
+        width, colour and kind, not the last frame's scan."""
+        return replace(self, scan=None)
+
+
+def _bev(cam: Camera, p: RoadEdgesParams, state: RoadEdgesState) -> BirdsEye:
+    if state.bev is not None and state.bev.camera == cam:
+        return state.bev
+    near = cam.image_to_ground(np.array([[cam.width / 2, cam.height - 1.0]]))[0]
+    y0 = float(near[1]) if np.isfinite(near[1]) else 1.0
+    w = int(2 * p.x_half_m * p.px_per_m)
+    h = int(p.depth_m * p.px_per_m)
+    return cam.birdseye((w, h), (-p.x_half_m, p.x_half_m), (y0, y0 + p.depth_m))
+
+
+def road_mask(bev_bgr: np.ndarray, visible: np.ndarray, p: RoadEdgesParams,
+              known: tuple[float, float, float] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(road, bright, reference Lab) of a bird's-eye BGR image: masks of road-coloured and of
+    bright-and-grey pixels. The reference is the patch just ahead of the car, unless that patch
+    looks nothing like the road colour `known` from earlier frames (the car is over a kerb or
+    off the road): then the known colour."""
+    lab = cv2.cvtColor(bev_bgr, cv2.COLOR_BGR2LAB).astype(np.int16)
+    h, w = lab.shape[:2]
+    ref = np.median(lab[h - max(2, int(1.2 * p.px_per_m)):, w // 2 - int(0.8 * p.px_per_m): w // 2 + int(0.8 * p.px_per_m)]
+                    .reshape(-1, 3), axis=0)
+    if known is not None and (abs(ref[0] - known[0]) > p.lab_tol[0] or np.abs(ref[1:] - known[1:]).max() > p.lab_tol[1]):
+        ref = np.asarray(known)
+    ref = np.round(ref).astype(np.int16)
+    d = np.abs(lab - ref)
+    light = (d[..., 0] < p.lab_tol[0]) | ((lab[..., 0] < ref[0]) & (lab[..., 0] > p.shadow_floor * ref[0]))
+    road = light & (d[..., 1] < p.lab_tol[1]) & (d[..., 2] < p.lab_tol[2])
+    bright = (lab[..., 0] > ref[0] + p.bright_l) & (np.abs(lab[..., 1] - 128) < 16) & (np.abs(lab[..., 2] - 128) < 16)
+    road = cv2.morphologyEx(((road | bright) & visible).astype(np.uint8), cv2.MORPH_OPEN, _OPEN) > 0
+    return road, bright & visible, ref
+
+
+@dataclass(frozen=True)
+class RoadScan:
+    """The row-by-row scan of a bird's-eye road mask, near to far, in ground metres (x right,
+    y ahead): each row's run of road around the path (its ends), whether each end is the edge
+    carried on from the rows before (ok) or has jumped away (a side road, a field of
+    road-coloured ground), the edges used (measured, or the other edge and the width), how far
+    the ground is visible to each side, and why the scan stopped ("lost": no road ahead of the
+    path, "view": the end of the bird's-eye view)."""
+
+    y: np.ndarray
+    run_l: np.ndarray
+    run_r: np.ndarray
+    ok_l: np.ndarray
+    ok_r: np.ndarray
+    edge_l: np.ndarray
+    edge_r: np.ndarray
+    seen_l: np.ndarray
+    seen_r: np.ndarray
+    width_m: float
+    stop: str
+    y_view: float  # the far end of the view
+
+
+def scan_edges(road: np.ndarray, visible: np.ndarray, bev: BirdsEye, p: RoadEdgesParams,
+               width_m: float) -> RoadScan:
+    """Scan a bird's-eye road mask row by row from the car outwards (see RoadScan)."""
+    h, w = road.shape
+    k = p.px_per_m
+    centre = w / 2.0
+    out: list[tuple] = []
+    hist_l: list[float] = []
+    hist_r: list[float] = []
+    misses = blind = 0
+    stop = "view"
+    for row in range(h - 1, -1, -1):
+        line = road[row]
+        c = int(round(centre))
+        if not (0 <= c < w) or not line[c]:
+            lo_c = max(0, c - int(0.6 * k))
+            near = np.flatnonzero(line[lo_c: c + int(0.6 * k) + 1])
+            if len(near) == 0:
+                misses += 1
+                if misses > 3:
+                    stop = "lost"
+                    break
+                continue
+            c = lo_c + int(near[np.argmin(np.abs(near - (c - lo_c)))])
+        misses = 0
+        off = np.flatnonzero(~line)
+        left = int(off[off < c].max()) + 1 if np.any(off < c) else 0
+        right = int(off[off > c].min()) - 1 if np.any(off > c) else w - 1
+        ok_l = left > 0 and _follows(hist_l, left, p.jump_m * k, p.step_m * k)
+        ok_r = right < w - 1 and _follows(hist_r, right, p.jump_m * k, p.step_m * k)
+        run = (right - left) / k
+        blind = 0 if (ok_l or ok_r) else blind + 1
+        if blind > 10 * k:
+            break  # 10 m without an edge: nothing more to follow
+        if ok_l:
+            hist_l.append(left)
+        if ok_r:
+            hist_r.append(right)
+        if ok_l and ok_r and p.min_width_m < run < p.max_width_m:
+            width_m = 0.9 * width_m + 0.1 * run
+        # where an edge jumped away, it goes on from its last rows (or one width from the other)
+        pl = hist_l[-1] if hist_l else None
+        pr = hist_r[-1] if hist_r else None
+        lo = left if ok_l else (right - width_m * k if ok_r else (pl if pl is not None else centre - width_m * k / 2))
+        hi = right if ok_r else (left + width_m * k if ok_l else (pr if pr is not None else centre + width_m * k / 2))
+        centre = 0.5 * (lo + hi)
+        seen = np.flatnonzero(visible[row])
+        out.append((row, left, right, ok_l, ok_r, lo, hi, seen[0] if len(seen) else c, seen[-1] if len(seen) else c))
+    a = np.array(out, float).reshape(-1, 9)
+    x0, y1 = bev.x_range_m[0], bev.y_range_m[1]
+    to_x = lambda col: x0 + (col + 0.5) / k  # noqa: E731
+    return RoadScan(y1 - (a[:, 0] + 0.5) / k, to_x(a[:, 1] - 0.5), to_x(a[:, 2] + 0.5), a[:, 3] > 0, a[:, 4] > 0,
+                    to_x(a[:, 5] - 0.5), to_x(a[:, 6] + 0.5), to_x(a[:, 7]), to_x(a[:, 8]), width_m, stop,
+                    float(bev.y_range_m[1]))
+
+
+def _follows(hist: list[float], x: float, tol: float, step: float) -> bool:
+    """Is x where the edge's last rows lead: near the straight continuation of its last two
+    rows, or a small step from the last (a kink of VIA's chamfered turns)? A side road or a bend
+    seen side-on moves the run's end much further in one row."""
+    if not hist:
+        return True
+    pred = hist[-1] if len(hist) < 2 else 2 * hist[-1] - hist[-2]
+    return abs(x - pred) <= tol or abs(x - hist[-1]) <= step
+
+
+def carriageway(image_bgr: np.ndarray, cam: Camera, p: RoadEdgesParams, state: RoadEdgesState):
+    """(left, right Boundary | None, width m, new state, road mask uint8 in the image or None)."""
+    h, w = image_bgr.shape[:2]
+    bev = _bev(cam, p, state)
+    visible = bev.warp(np.full((h, w), 255, np.uint8), cv2.INTER_NEAREST) > 0
+    road, bright, ref = road_mask(bev.warp(image_bgr[:, :, :3]), visible, p, state.road_lab)
+    scan = scan_edges(road, visible, bev, p, state.width_m or p.width_m)
+    left = _fit(np.column_stack([scan.run_l, scan.y])[scan.ok_l], p)
+    right = _fit(np.column_stack([scan.run_r, scan.y])[scan.ok_r], p)
+    good = left is not None and right is not None and p.min_width_m < scan.width_m < p.max_width_m
+    paint = _centre_paint(bright, bev, scan, p) if good else None
+    memory, lab = state.centre_paint, state.road_lab
+    if paint is not None:  # only a well-seen carriageway says whether it has a centre line
+        memory = paint if memory is None else p.paint_memory * memory + (1 - p.paint_memory) * paint
+    if good:
+        lab = tuple(float(v) for v in (ref if lab is None else 0.9 * np.asarray(lab) + 0.1 * ref))
+    mask = None if left is None and right is None else bev.unwarp(road.astype(np.uint8) * 255, cv2.INTER_NEAREST)
+    return left, right, scan.width_m, RoadEdgesState(scan.width_m, memory, bev, scan, lab), mask
+
+
+def centre_path(scan: "RoadScan", smooth_rows: int = 5) -> np.ndarray | None:
+    """The carriageway's middle traced by a scan, (N,2) ground metres near to far, smoothed."""
+    if scan is None or len(scan.y) < smooth_rows:
+        return None
+    x = 0.5 * (scan.edge_l + scan.edge_r)
+    k = np.ones(smooth_rows) / smooth_rows
+    xs = np.convolve(np.pad(x, smooth_rows // 2, mode="edge"), k, mode="valid")[: len(x)]
+    return np.column_stack([xs, scan.y])
+
+
+@register(NAME, RoadEdgesParams)
+def road_edges(image_bgr: np.ndarray, camera: Camera | None, params: RoadEdgesParams,
+               state: RoadEdgesState | None) -> tuple[LaneEstimate, RoadEdgesState]:
+    """The carriageway in a uint8 (H, W, 3) BGR frame as the lane; see the module docstring."""
+    image_bgr = image_bgr if image_bgr.ndim == 3 else cv2.cvtColor(image_bgr, cv2.COLOR_GRAY2BGR)
+    h, w = image_bgr.shape[:2]
+    state = state or RoadEdgesState()
+    if min(h, w) < 16:
+        return LaneEstimate(NAME, False, debug_mask=np.zeros((h, w), np.uint8), basis="edges"), state
+    cam = camera_for(image_bgr, camera)
+    left, right, width, new_state, mask = carriageway(image_bgr, cam, params, state)
+    debug = mask if mask is not None else np.zeros((h, w), np.uint8)
+    est = estimate_from_fits(NAME, cam, left, right, width, None, debug)
+    path = centre_path(new_state.scan) if est.found else None
+    return replace(est, basis="edges", path_m=path), new_state
+
+
+def _fit(g: np.ndarray, p: RoadEdgesParams):
+    if len(g) < p.min_rows:
+        return None
+    g = g[g[:, 1] <= g[:, 1].min() + p.fit_near_m]  # the near part: where steering looks
+    return fit_boundary(g, order=2, min_points=p.min_rows)
+
+
+def _centre_paint(bright: np.ndarray, bev: BirdsEye, scan: RoadScan, p: RoadEdgesParams) -> float | None:
+    """Share of rows (with both edges) whose middle band holds bright paint, or None."""
+    both = scan.ok_l & scan.ok_r
+    if both.sum() < p.min_rows:
+        return None
+    mid = 0.5 * (scan.run_l[both] + scan.run_r[both])
+    uv = bev.ground_to_bev(np.column_stack([mid, scan.y[both]]))
+    band = max(1, int(round(p.paint_band_m * p.px_per_m)))
+    w = bright.shape[1]
+    hits = [bright[int(v), max(0, int(u) - band): min(w, int(u) + band + 1)].any() for u, v in uv]
+    return float(np.mean(hits))
