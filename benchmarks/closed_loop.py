@@ -1,5 +1,5 @@
 """Closed-loop driving score over many tracks: the bundled maps and N seeded procedural tracks,
-in lockstep (deterministic) and/or real time at 20 Hz through a drive server started in the same
+in lockstep (deterministic) and/or real time at 30 Hz through a drive server started in the same
 process (as `signlane sim --with-driver`), with the default config (shipped models).
 
 It prints one row per (track, mode), a totals row per mode, the acceptance check

@@ -70,7 +70,7 @@ def _child(method: str | None, signs: bool, conn) -> None:
     conn.send(("totals", srv.totals))
 
 
-def lockstep(url: str, messages: list[str]) -> tuple[list[float], float]:
+def lockstep(url: str, messages: list[bytes]) -> tuple[list[float], float]:
     """Round-trip ms per frame and frames/s, one frame in flight."""
     rtt = []
     with connect(url, max_size=None) as ws:
@@ -84,7 +84,7 @@ def lockstep(url: str, messages: list[str]) -> tuple[list[float], float]:
     return rtt, fps
 
 
-def flood(url: str, messages: list[str]) -> float:
+def flood(url: str, messages: list[bytes]) -> float:
     """Answers/s when every frame is sent without waiting for answers."""
     with connect(url, max_size=None) as ws:
         t0 = time.perf_counter()
@@ -119,7 +119,7 @@ class ChildServer:
         self.proc.join(30)
 
 
-def measure(name: str, method: str | None, signs: bool, messages: list[str], repeats: int,
+def measure(name: str, method: str | None, signs: bool, messages: list[bytes], repeats: int,
             base_url: str) -> dict:
     """One row. Each repeat times the baseline server right before this one, so the ratio
     compares the two under the same load (the machine is shared; absolute numbers drift)."""
@@ -154,7 +154,7 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=4)
     args = ap.parse_args()
     sampler = DriveSampler(args.seed, SamplerConfig(640, 480, effects="normal"))
-    messages = [encode_telemetry(0.0, 0.4, 8.0, encode_jpeg(sampler.sample(i).image), time=i / 20)
+    messages = [encode_telemetry(0.0, 0.5, 8.0, encode_jpeg(sampler.sample(i).image), time=i / 30)
                 for i in range(args.frames)]
     kb = np.mean([len(m) for m in messages]) / 1024
     with ChildServer(None, False) as base_url:

@@ -61,12 +61,16 @@ class DriveConfig:
     """Closed-loop driving (`signlane drive`, `signlane sim --with-driver`): the speed planner
     and what the driver assumes of the car."""
 
-    max_speed: float = 10.0  # simulator speed at throttle 1 (VIA throttle is a target-speed fraction)
+    max_speed: float = 13.41  # VIA's 30 mph: throttle is a target fraction of it
     cruise_speed: float = 5.0
     approach_speed: float = 3.0  # after a confirmed sign, until it is dealt with
     stop_hold_s: float = 2.0
-    coast_decel: float = 1.5  # how fast the car slows at throttle 0 (there are no brakes)
-    wheelbase_m: float = 1.8  # for odometry and path following
+    # how fast the car slows at throttle 0 (there are no brakes), taken as constant by the stop
+    # planner. VIA's car slows at 0.5 m/s^2 rolling + 0.1/s drag x speed (0.8 m/s^2 at 3 m/s),
+    # so 0.4 is below it at every speed: the planned stop comes early, never late, with margin
+    # for the rolling estimate and a reply applied a frame late.
+    coast_decel: float = 0.4
+    wheelbase_m: float = 1.957  # VIA's car; for odometry and path following
     sign_size_m: float = 1.25  # sign face height, for the distance to a sign (VIA's: 1.25 m)
     lanes_width: int = 320  # lanes and junctions run on frames scaled to this width (0 = as sent)
 

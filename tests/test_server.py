@@ -1,4 +1,5 @@
-"""The drive server over real WebSockets: valid frames get commands; no bad input stops it."""
+"""The drive server over real WebSockets: valid frames (binary, as VIA sends them, or text) get
+commands; no bad input stops it."""
 import base64
 import json
 import logging
@@ -19,7 +20,7 @@ from signlane.camera import Camera
 from signlane.cli import main as cli_main
 from signlane.config import Config
 from signlane.sim.drive_stats import ErrorLog
-from signlane.sim.protocol import SAFE_COMMAND, encode_jpeg, encode_telemetry
+from signlane.sim.protocol import MPS_PER_MPH, SAFE_COMMAND, encode_jpeg, encode_telemetry
 from signlane.sim.server import DriveServer, ServerOptions
 from signlane.types import Command, LaneEstimate, Perception
 from signlane.world.sampling import FrameSampler, SamplerConfig
@@ -28,8 +29,9 @@ MAX_BYTES = 256 * 1024  # small, so over-limit messages are cheap to make
 SAFE = json.loads(SAFE_COMMAND)
 
 
-def tel(image, i: int = 0, speed: float = 5.0) -> str:
-    return encode_telemetry(0.0, 0.3, speed, encode_jpeg(image), time=0.05 * i)
+def tel(image, i: int = 0, speed: float = 5.0) -> bytes:
+    """A binary frame as signlane's lockstep simulator sends it (VIA's, plus the "time" key)."""
+    return encode_telemetry(0.0, 0.5, speed, encode_jpeg(image), time=0.05 * i)
 
 
 @pytest.fixture(scope="module")
@@ -71,6 +73,25 @@ def test_valid_frames_get_commands(server, messages):
             assert_command(ask(ws, m))
 
 
+def test_vias_exact_frames_get_text_answers(server, frames):
+    """What VIA sends: binary frames, N4 strings, speed in mph, no "time" key; as text frames and
+    from a comma-decimal machine too. Each gets a plain-number text answer, the same for all."""
+    jpegs = [encode_jpeg(f) for f in frames]
+    assert json.loads(encode_telemetry(-1.25, 0.5, 5.0, jpegs[0]))["speed"] == "11.1847"  # mph on the wire
+    answers = {}
+    for form in ("binary", "text", "comma"):
+        with connect(server.url) as ws:
+            out = []
+            for i, jpeg in enumerate(jpegs):
+                msg = encode_telemetry(-1.25 * i, 0.5 * (i % 2), 5.0, jpeg, decimal="," if form == "comma" else ".")
+                assert b'"time"' not in msg and b" " not in msg
+                out.append(ask(ws, msg.decode("utf-8") if form == "text" else msg))
+            answers[form] = out
+    for cmd in answers["binary"]:
+        assert_command(cmd)
+    assert answers["text"] == answers["binary"] == answers["comma"]
+
+
 def test_steering_turns_back_towards_the_lane_centre():
     route, renderer = loop_scene()
     cam = Camera(width=320, height=240)
@@ -109,7 +130,9 @@ def _bad_inputs(good_frame):
         "non-jpeg bytes": with_(image=base64.b64encode(b"GIF89a but not really" * 10).decode()),
         "empty image": with_(image=""),
         "1x1 image": with_(image=_jpeg_b64(np.zeros((1, 1, 3), np.uint8))),
-        "binary frame": tel(good_frame).encode(),
+        "comma without 4 decimals": with_(speed="5,0"),
+        "binary frame not UTF-8": tel(good_frame).replace(b'"0.5000"', b'"0.5\xff00"'),
+        "binary frame, bad number": with_(steering_angle="1.2.3").encode(),
         "over the size limit": with_(pad="x" * (MAX_BYTES + 10)),
     }
 
@@ -125,6 +148,15 @@ def test_every_bad_input_gets_a_safe_answer_and_one_log_line(server, frames, mes
             assert len(lines) == 1, (name, [r.getMessage() for r in lines])
             assert "\n" not in lines[0].getMessage()
             assert_command(ask(ws, messages[1]))  # and the next valid frame is driven again
+
+
+def test_size_limit_applies_to_binary_frames(messages):
+    big = json.dumps({**json.loads(messages[0]), "pad": "x" * MAX_BYTES}).encode()
+    with DriveServer(options=ServerOptions(port=0, max_bytes=MAX_BYTES), driver_factory=lambda: SlowDriver(0.0)) as srv:
+        with connect(srv.url) as ws:
+            assert ask(ws, big) == SAFE
+            assert ask(ws, messages[0]) == {"throttle": 0.5, "steering": 0.25}
+    assert srv.totals["bad"] == 1
 
 
 def test_repeated_errors_are_rate_limited(messages, caplog):
@@ -183,7 +215,7 @@ def test_client_disconnecting_mid_frame(server, messages, caplog):
     sock.sendall(text_frame(b"{" * 5_000, declared=100_000))
     sock.close()  # gone without finishing the frame or closing the connection
     sock = raw_client(server.port)
-    sock.sendall(text_frame(messages[0].encode()))
+    sock.sendall(text_frame(messages[0]))
     sock.close()  # gone while its frame is being driven, answer unread
     with connect(server.url) as ws:
         assert_command(ask(ws, messages[0]))
@@ -215,13 +247,13 @@ def test_several_clients_at_once_each_with_its_own_driver(server, messages):
 
 
 class SlowDriver:
-    """A stand-in driver: slow, and raises on a frame whose speed is 13."""
+    """A stand-in driver: slow, and raises on a frame whose speed is 13 m/s."""
 
     def __init__(self, delay_s: float = 0.15):
         self.delay_s = delay_s
 
     def step(self, t):
-        if t.speed == 13.0:
+        if abs(t.speed_mps - 13.0) < 1e-3:
             raise RuntimeError("boom")
         time.sleep(self.delay_s)
         lane = LaneEstimate("fake", True)
@@ -257,10 +289,14 @@ def test_record_writes_a_readable_dataset(frames, messages, tmp_path):
     assert manifest["config"]["signs"]["enabled"] is False
     lines = [json.loads(x) for x in (rec / "drive.jsonl").read_text().splitlines()]
     assert [x["id"] for x in lines] == [f"c1-{i:06d}" for i in range(4)]
-    for line, answer, msg in zip(lines, answers, messages):
+    for i, (line, answer, msg) in enumerate(zip(lines, answers, messages)):
         assert line["command"]["steering"] == pytest.approx(answer["steering"], abs=1e-4)
         assert line["command"]["throttle"] == pytest.approx(answer["throttle"], abs=1e-4)
-        assert line["telemetry"]["speed"] == 5.0 and line["lane"]["method"] == Config().lanes.method
+        # SI units in the recording: m/s from the mph on the wire (4 decimals of mph)
+        assert line["telemetry"]["speed_mps"] == pytest.approx(5.0, abs=0.5e-4 * MPS_PER_MPH)
+        assert (line["telemetry"]["wheel_deg"], line["telemetry"]["pedal"]) == (0.0, 0.5)
+        assert line["telemetry"]["time"] == pytest.approx(0.05 * i)
+        assert line["lane"]["method"] == Config().lanes.method
         jpeg = (rec / line["image"]).read_bytes()
         assert jpeg == base64.b64decode(json.loads(msg)["image"])  # the simulator's bytes, unchanged
         assert cv2.imread(str(rec / line["image"])).shape == (240, 320, 3)

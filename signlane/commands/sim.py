@@ -1,18 +1,37 @@
 """`signlane sim`: the local VIA-compatible simulator (a WebSocket client of a drive server)."""
 from __future__ import annotations
 
+import argparse
+import math
 from pathlib import Path
 
 from signlane.commands.common import UserError, positive, size_arg
 
 
+def fps_arg(text: str) -> float:
+    """--fps: a positive number, or `uncapped` / 0 for as fast as frames can be made."""
+    if text.strip().lower() == "uncapped":
+        return 0.0
+    try:
+        v = float(text)
+    except ValueError:
+        v = math.nan
+    if not (v == 0 or (math.isfinite(v) and v > 0)):
+        raise argparse.ArgumentTypeError(f"must be a positive number of frames/s or 'uncapped', not {text!r}")
+    return v
+
+
 def add_sim(sub) -> None:
     p = sub.add_parser("sim", help="drive a car in the local simulator and score the drive",
                        description="signlane's own VIA-compatible simulator: renders the camera view at the "
-                                   "car's pose (640x480 JPEG by default), sends it to a drive server in VIA's "
-                                   "protocol, moves the car with a kinematic bicycle model (steering scaled to "
-                                   "25 degrees, throttle a target speed fraction) and scores the drive: laps, "
-                                   "autonomy, off-road events, cross-track error, stop and turn compliance.")
+                                   "car's pose (640x480 JPEG of quality 75 by default) and sends it to a drive "
+                                   "server exactly as VIA does (binary WebSocket frames of JSON with N4 number "
+                                   "strings, speed in mph, the image one frame behind the numbers). The car is "
+                                   "VIA's: steering 1.0 = 25 degrees, set at once; throttle is a target fraction "
+                                   "of 30 mph (13.41 m/s), held by half pedal (1.4 m/s^2) while below it; no "
+                                   "brakes and no reverse, so throttle 0 coasts (drag and rolling resistance); "
+                                   "with no new reply the last steering and pedal stay. It scores the drive: "
+                                   "laps, autonomy, off-road events, cross-track error, stop and turn compliance.")
     where = p.add_mutually_exclusive_group()
     where.add_argument("--map", type=Path, help="a VIA map JSON file, as VIA's editor writes them "
                                                 "(default: the bundled via_town)")
@@ -26,9 +45,17 @@ def add_sim(sub) -> None:
     p.add_argument("--with-driver", action="store_true",
                    help="start signlane's drive server in this process on a free port and drive with it")
     p.add_argument("--lockstep", action="store_true",
-                   help="wait for each answer before the next frame (deterministic; default: real time, the "
-                        "simulator never waits, as VIA)")
-    p.add_argument("--fps", type=float, default=20.0, help="frames per second of simulated time (default 20)")
+                   help="wait for each answer before the next frame (deterministic) and add a \"time\" key "
+                        "(simulated seconds) to each frame so the server can keep simulated time; VIA does "
+                        "neither. Default: real time, VIA's exact messages, never waiting for an answer")
+    p.add_argument("--fps", type=fps_arg, default=30.0, metavar="FPS|uncapped",
+                   help="frames per second (default 30; e.g. 60): in lockstep each frame is 1/FPS simulated "
+                        "seconds, in real time frames go out at this rate; 'uncapped' or 0: as fast as frames "
+                        "can be made, as VIA's native build, each frame's time step the wall time since the "
+                        "last (at most 0.1 s)")
+    p.add_argument("--decimal", choices=[".", ","], default=".",
+                   help="decimal mark of the numbers sent: ',' as VIA on a comma-decimal machine (\"0,5000\"; "
+                        "default '.')")
     p.add_argument("--size", type=size_arg, default=(640, 480), help="camera frame WxH (default 640x480)")
     p.add_argument("--laps", type=positive, default=1, help="stop after this many laps (default 1)")
     p.add_argument("--max-seconds", type=float, default=600.0, help="stop after this much simulated time (default 600)")
@@ -69,7 +96,7 @@ def _run_sim(args) -> int:
         raise UserError(str(e)) from None
     sim_cfg = SimConfig(width=args.size[0], height=args.size[1], fps=args.fps, effects=args.effects,
                         random_looks=args.random_looks, looks_seed=args.seed, laps=args.laps,
-                        max_seconds=args.max_seconds)
+                        max_seconds=args.max_seconds, decimal=args.decimal)
     url = None if args.with_driver else args.url
     try:
         rep = run_session(track, sim_cfg, args.out, config, url=url, lockstep=args.lockstep,

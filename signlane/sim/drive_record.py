@@ -4,14 +4,14 @@ the thread that answers the simulator.
 
 A recording is a folder a person can open and a learner can read:
   images/<id>.jpg   the frame exactly as the simulator sent it (its JPEG bytes, not re-encoded)
-  drive.jsonl       one object per driven frame: telemetry, the command sent, what perception saw
+  drive.jsonl       one object per driven frame: telemetry in SI units (wheel_deg, pedal,
+                    speed_mps, time when sent), the command sent, what perception saw
   manifest.json     written last, on a clean shutdown: counts, the resolved config. As for every
                     signlane dataset, a folder is complete iff it holds manifest.json.
 Each image is written atomically before its JSONL line, so every line names a whole file.
 """
 from __future__ import annotations
 
-import base64
 import json
 import logging
 import os
@@ -47,7 +47,7 @@ def frame_record(frame_id: str, client: int, tel: Telemetry, perception: Percept
     """The JSONL object of one driven frame. `sent` holds the values actually sent (clipped)."""
     h, w = tel.image_bgr.shape[:2]
     lane = perception.lane
-    tel_d = {"steering_angle": tel.steering_angle, "throttle": tel.throttle, "speed": tel.speed}
+    tel_d = {"wheel_deg": tel.wheel_deg, "pedal": tel.pedal, "speed_mps": _round(tel.speed_mps, 5)}
     if tel.time is not None:
         tel_d["time"] = tel.time
     return {"id": frame_id, "image": f"images/{frame_id}.jpg", "width": int(w), "height": int(h),
@@ -164,9 +164,3 @@ def sent_command(answer: str, state: str) -> Command:
     """The Command as it went on the wire (clipped, NaN-free), from the encoded answer."""
     d = json.loads(answer)
     return Command(float(d["steering"]), float(d["throttle"]), state)
-
-
-def jpeg_of(message: str) -> bytes:
-    """The image bytes of a telemetry message already known to be valid."""
-    return base64.b64decode(json.loads(message)["image"])
-

@@ -128,7 +128,7 @@ class Driver:
         t = telemetry.time if telemetry.time is not None else (time.monotonic() if now is None else now)
         timing: dict[str, float] = {}
         t0 = time.perf_counter()
-        pose = self.odometry.step(t, telemetry.speed, telemetry.steering_angle)
+        pose = self.odometry.step(t, telemetry.speed_mps, telemetry.wheel_deg)
         small = image if self.scaled == (w, h) else cv2.resize(image, self.scaled, interpolation=cv2.INTER_AREA)
         lane = self.lane(small)
         t1 = time.perf_counter()
@@ -145,7 +145,7 @@ class Driver:
         t3 = time.perf_counter()
         timing["signs"] = (t3 - t2) * 1e3
         was = self.behaviour.path is not None
-        steering, throttle, state = self.behaviour.step(t, pose, self.odometry.distance_m, telemetry.speed,
+        steering, throttle, state = self.behaviour.step(t, pose, self.odometry.distance_m, telemetry.speed_mps,
                                                         lane, view, two_lane)
         if was and self.behaviour.path is None:  # the tracker's last fit is from before the junction
             keep = getattr(self.lane.state, "forget_tracks", None)

@@ -1,6 +1,8 @@
 """The drive server: the VIA simulator (or `signlane sim`) connects, sends frames, gets commands.
 
-Each connection gets its own Driver. For every text frame the server answers one command:
+VIA sends each frame as a binary WebSocket message holding UTF-8 JSON (signlane/sim/protocol.py);
+text frames are accepted too. Each connection gets its own Driver. For every frame, binary or
+text, the server answers one command, as a text frame of plain-number JSON:
   - driver idle: decode + Driver.step run on a worker thread (the event loop keeps serving other
     frames and clients), and the new command is the answer;
   - driver busy with an earlier frame: the frame is answered at once with the connection's latest
@@ -29,7 +31,7 @@ from websockets.asyncio.server import serve as ws_serve
 from websockets.exceptions import ConnectionClosed
 
 from signlane.config import Config
-from signlane.sim.drive_record import DiskWriter, Recorder, Shower, jpeg_of, sent_command
+from signlane.sim.drive_record import DiskWriter, Recorder, Shower, sent_command
 from signlane.sim.drive_stats import ErrorLog, Rates
 from signlane.sim.driver import Driver
 from signlane.sim.protocol import (MAX_MESSAGE_BYTES, SAFE_COMMAND, ProtocolError, Telemetry, decode_telemetry,
@@ -162,14 +164,13 @@ class _Connection:
             self.job = asyncio.create_task(self.drive(message, t_recv))
 
     def precheck(self, message: str | bytes) -> str:
-        """Problems found without decoding (so even while the driver is busy)."""
-        if isinstance(message, (bytes, bytearray)):
-            return f"binary message of {len(message)} bytes (the protocol sends JSON text)"
+        """Problems found without decoding (so even while the driver is busy). Binary frames
+        (what VIA sends) and text frames alike: bytes or characters against the limit."""
         if len(message) > self.server.options.max_bytes:
             return f"message of {len(message)} bytes is over the {self.server.options.max_bytes}-byte limit"
         return ""
 
-    async def drive(self, message: str, t_recv: float) -> None:
+    async def drive(self, message: str | bytes, t_recv: float) -> None:
         loop = asyncio.get_running_loop()
         try:
             res = await loop.run_in_executor(self.server.pool, self.work, message)
@@ -185,10 +186,10 @@ class _Connection:
         self.latest = res.answer
         await self.send(res.answer, t_recv)
         if not res.error:
-            self.keep(message, res)
+            self.keep(res)
             self.driven += 1
 
-    def work(self, message: str) -> _Result:
+    def work(self, message: str | bytes) -> _Result:
         """Runs on a worker thread: decode, perceive, decide."""
         t0 = time.perf_counter()
         try:
@@ -206,7 +207,7 @@ class _Connection:
             return  # the reader loop reports the disconnect
         self.server.rates.answer_ms.append((time.perf_counter() - t_recv) * 1e3)
 
-    def keep(self, message: str, res: _Result) -> None:
+    def keep(self, res: _Result) -> None:
         """Hand a driven frame to the disk thread (recording, annotated frames)."""
         s = self.server
         if s.disk is None:
@@ -214,10 +215,10 @@ class _Connection:
         frame_id = f"c{self.cid}-{self.driven:06d}"
         sent = sent_command(res.answer, res.command.state)
         if s.recorder:
-            s.disk.submit(lambda: s.recorder.write(frame_id, self.cid, jpeg_of(message), res.telemetry,
+            s.disk.submit(lambda: s.recorder.write(frame_id, self.cid, res.telemetry.jpeg, res.telemetry,
                                                    res.perception, sent))
         if s.shower and s.shower.wants(self.driven):
-            s.disk.submit(s.shower.write, frame_id, res.telemetry.speed, res.perception, sent)
+            s.disk.submit(s.shower.write, frame_id, res.telemetry.speed_mps, res.perception, sent)
 
 
 def probe_driver(make_driver: Callable[[], Any]) -> None:
@@ -227,7 +228,8 @@ def probe_driver(make_driver: Callable[[], Any]) -> None:
     from signlane.onnx_model import ModelError
     driver = make_driver()
     try:
-        driver.step(Telemetry(0.0, 0.0, 0.0, np.full((240, 320, 3), 110, np.uint8), 0.0))
+        driver.step(Telemetry(wheel_deg=0.0, pedal=0.0, speed_mps=0.0, image_bgr=np.full((240, 320, 3), 110, np.uint8),
+                              time=0.0))
     except (ModelError, ValueError, OSError):
         raise
     except Exception as e:  # a driver bug on a blank frame: worth a line, not a refusal to serve

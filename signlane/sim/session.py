@@ -41,7 +41,8 @@ def run_session(track: Track, sim_config: SimConfig, out: Path | None, config: C
     writer = None
     if video and out is not None:
         out.mkdir(parents=True, exist_ok=True)
-        writer = VideoOut(out / "drive.mp4", sim_config.fps, (sim_config.width, sim_config.height))
+        # an uncapped run has no frame rate of its own: play it at 30 frames/s
+        writer = VideoOut(out / "drive.mp4", sim_config.fps or 30.0, (sim_config.width, sim_config.height))
 
     def progress(s, cmd, perception):
         bar.n = s.course.laps
@@ -67,7 +68,8 @@ def run_session(track: Track, sim_config: SimConfig, out: Path | None, config: C
             writer.close()
     rep["fps"] = round(sim.frame / max(time.perf_counter() - t0, 1e-9), 2)
     rep["map"] = track.name
-    rep["mode"] = "lockstep" if lockstep else f"real time {sim_config.fps:g} Hz"
+    rep["mode"] = "lockstep" if lockstep else \
+        (f"real time {sim_config.fps:g} Hz" if sim_config.fps > 0 else "real time uncapped")
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
         atomic_write_json(out / "report.json", rep)

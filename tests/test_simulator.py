@@ -1,0 +1,159 @@
+"""The local simulator's transport and timing: VIA's bytes and binary frames, the image one frame
+late, replies applied to the car as they arrive, lockstep's "time" key, frame rates."""
+import argparse
+import json
+import threading
+import time
+
+import pytest
+from websockets.sync.server import serve
+
+from signlane.commands.sim import fps_arg
+from signlane.sim.protocol import TELEMETRY_KEYS, decode_telemetry, parse_number
+from signlane.sim.simulator import SimConfig, Simulator, run_client, run_inprocess
+from signlane.types import Command
+from signlane.world.procedural import generate_map
+from signlane.world.track import Track
+
+
+@pytest.fixture(scope="module")
+def track():
+    return Track.from_via(generate_map(3, size="small"))
+
+
+def small(**kw) -> SimConfig:
+    return SimConfig(**{"width": 96, "height": 72, **kw})
+
+
+def test_observe_sends_vias_bytes(track):
+    sim = Simulator(track, small())
+    msg = sim.observe()
+    assert isinstance(msg, bytes) and msg.startswith(b'{"steering_angle":"0.0000","throttle":"0.0000",'
+                                                     b'"speed":"0.0000","image":"/9j/')
+    assert tuple(json.loads(msg)) == TELEMETRY_KEYS  # no "time": VIA sends none
+    assert b'"time":"0.0000"}' in sim.observe(send_time=True)
+    comma = Simulator(track, small(decimal=","))
+    comma.advance((0.5, 1.0))
+    comma.advance(None)
+    assert b'"steering_angle":"12,5000","throttle":"0,5000"' in comma.observe()
+
+
+def test_image_lags_the_numbers_by_one_frame(track):
+    sim = Simulator(track, small())
+    first = decode_telemetry(sim.observe())
+    for _ in range(30):
+        sim.advance((0.0, 1.0))
+    late = decode_telemetry(sim.observe())  # this frame's numbers, the previous message's image
+    now = decode_telemetry(sim.observe())  # the same pose again: this one carries `late`'s render
+    assert late.speed_mps > 0.5 and late.speed_mps == now.speed_mps
+    assert late.jpeg == first.jpeg and now.jpeg != late.jpeg
+    sim2 = Simulator(track, small(image_lag_frames=0))
+    sim2.observe()
+    for _ in range(30):
+        sim2.advance((0.0, 1.0))
+    assert decode_telemetry(sim2.observe()).jpeg == now.jpeg  # no lag: the current frame's render
+
+
+def test_no_new_reply_keeps_the_last_steering_and_pedal(track):
+    sim = Simulator(track, small())
+    sim.advance((0.5, 1.0))
+    for _ in range(15):
+        sim.advance(None)
+    assert sim.vehicle.wheel_deg == 12.5 and sim.vehicle.pedal == 0.5 and sim.vehicle.speed > 0.1
+
+
+def test_frame_rates(track):
+    sim = Simulator(track, small(fps=60))
+    for _ in range(60):
+        sim.advance((0.0, 0.5))
+    assert sim.t == pytest.approx(1.0) and sim.vehicle.ticks == 50
+    assert Simulator(track, small()).config.fps == 30.0
+    uncapped = Simulator(track, small(fps=0))
+    time.sleep(0.15)
+    uncapped.advance((0.0, 0.5))
+    assert uncapped.t == pytest.approx(0.1)  # a stalled frame moves the car at most 0.1 s
+    uncapped.advance(None)
+    assert 0.1 < uncapped.t < 0.2  # then the wall time since the last frame
+
+
+class RecordingDriver:
+    def __init__(self):
+        self.calls = []
+
+    def step(self, telemetry, now=None):
+        self.calls.append((telemetry, now))
+        return None, Command(0.2, 0.4, "cruise")
+
+
+def test_inprocess_hands_the_simulated_time_beside_vias_bytes(track):
+    sim = Simulator(track, small(max_seconds=0.49))
+    driver = RecordingDriver()
+    run_inprocess(sim, driver)
+    assert len(driver.calls) == 15
+    assert all(tel.time is None for tel, _ in driver.calls)  # nothing on the wire that VIA would not send
+    assert [now for _, now in driver.calls] == pytest.approx([k / 30 for k in range(15)])
+    assert sim.vehicle.wheel_deg == 5.0
+
+
+class FakeServer:
+    """A WebSocket server that records every message and answers with `reply` (None: never)."""
+
+    def __init__(self, reply: str | None):
+        self.reply, self.messages = reply, []
+        self.server = serve(self.handle, "127.0.0.1", 0, max_size=None)
+        self.thread = threading.Thread(target=self.server.serve_forever, daemon=True)
+
+    def handle(self, ws):
+        for message in ws:
+            self.messages.append(message)
+            if self.reply is not None:
+                ws.send(self.reply)
+
+    def __enter__(self):
+        self.thread.start()
+        return f"ws://127.0.0.1:{self.server.socket.getsockname()[1]}"
+
+    def __exit__(self, *exc):
+        self.server.shutdown()
+        self.thread.join(10)
+
+
+def test_clients_send_binary_frames(track):
+    lock = Simulator(track, small(max_seconds=0.29))
+    server = FakeServer('{"throttle": 0.5, "steering": -0.12}')
+    with server as url:
+        run_client(lock, url, lockstep=True)
+    assert len(server.messages) == 9 and all(isinstance(m, bytes) for m in server.messages)
+    times = [parse_number("time", json.loads(m)["time"]) for m in server.messages]
+    assert times == pytest.approx([k / 30 for k in range(9)], abs=1e-4)  # lockstep: simulated time, N4
+    assert lock.vehicle.wheel_deg == pytest.approx(-3.0) and lock.vehicle.pedal == 0.5
+
+    real = Simulator(track, small(max_seconds=0.29))
+    server = FakeServer('{"throttle": 0.5, "steering": -0.12}')
+    with server as url:
+        run_client(real, url, lockstep=False)
+    assert server.messages and all(isinstance(m, bytes) for m in server.messages)
+    assert all(tuple(json.loads(m)) == TELEMETRY_KEYS for m in server.messages)  # VIA's bytes: no "time"
+    assert real.vehicle.wheel_deg == pytest.approx(-3.0) and real.vehicle.pedal == 0.5  # replies reached the car
+
+
+def test_real_time_never_waits_for_a_reply(track):
+    sim = Simulator(track, small(max_seconds=0.3, fps=60))
+    server = FakeServer(None)  # reads every frame, answers none
+    with server as url:
+        rep = run_client(sim, url, lockstep=False)
+    assert rep["time_s"] >= 0.3 and len(server.messages) == sim.frame > 1
+    assert sim.vehicle.pedal == 0.0 and sim.vehicle.speed == 0.0  # no reply: no command, the car stays
+
+
+@pytest.mark.parametrize("text, fps", [("30", 30.0), ("60", 60.0), ("12.5", 12.5), ("uncapped", 0.0), ("0", 0.0)])
+def test_fps_flag(text, fps):
+    assert fps_arg(text) == fps
+
+
+@pytest.mark.parametrize("text", ["-1", "nan", "inf", "fast", ""])
+def test_fps_flag_refuses(text):
+    with pytest.raises(argparse.ArgumentTypeError, match="uncapped"):
+        fps_arg(text)
+    with pytest.raises(ValueError, match="fps"):
+        SimConfig(fps=float("nan") if text == "nan" else -1.0)
