@@ -46,6 +46,10 @@ class BehaviourParams:
     lane_width_m: float = 3.2
     kerbed_radius_m: float = 4.6  # turns on a kerbed carriageway (the car keeps its middle): VIA's
     # car turns no tighter than 4.2 m
+    # pure-pursuit lookahead (m, + m per m/s): VIA's turns are tight (6 m radius) and chamfered,
+    # and a long lookahead cuts them; painted roads bend gently and their far paint is noisier
+    lookahead_kerbed: tuple[float, float] = (3.5, 0.3)
+    lookahead_painted: tuple[float, float] = (5.0, 0.5)
     commit_near_m: float = 12.0  # plan a junction once its side road starts this close
     instruction_range_m: float = 40.0  # a turn sign applies to a junction within this distance after it
 
@@ -110,6 +114,7 @@ class Behaviour:
             if stop is not None and stop[0] / self.p.max_speed <= throttle:
                 return steering, stop[0] / self.p.max_speed, stop[1]
             return steering, throttle, state
+        self.follow.lookahead, self.follow.per_mps = self.p.lookahead_painted if two_lane else self.p.lookahead_kerbed
         steering = self.follow.step(lane, speed)
         v, state = self._speed(t, pose, speed, lane)
         return steering, v / self.p.max_speed, state
