@@ -20,6 +20,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from signlane import imagecheck
+
 TELEMETRY_KEYS = ("steering_angle", "throttle", "speed", "image")
 MAX_MESSAGE_BYTES = 8 * 1024 * 1024
 MIN_IMAGE_SIDE = 16
@@ -81,8 +83,9 @@ def _field(msg: dict, key: str) -> float:
 IMAGE_SIGNATURES = (b"\xff\xd8\xff", b"\x89PNG\r\n\x1a\n")
 
 
-def decode_image(b64: object) -> np.ndarray:
-    """base64 JPEG (or PNG) -> uint8 (H, W, 3) BGR, or ProtocolError."""
+def decode_image(b64: object, max_pixels: int = imagecheck.DEFAULT_MAX_PIXELS) -> np.ndarray:
+    """base64 JPEG (or PNG) -> uint8 (H, W, 3) BGR, or ProtocolError (also for more than
+    `max_pixels` pixels and for corrupt data: see signlane/imagecheck.py)."""
     if not isinstance(b64, str):
         raise ProtocolError("telemetry 'image' is missing or not a string")
     if not b64:
@@ -94,18 +97,17 @@ def decode_image(b64: object) -> np.ndarray:
     if not data.startswith(IMAGE_SIGNATURES):
         raise ProtocolError(f"telemetry 'image' is not a JPEG ({len(data)} bytes starting {data[:8]!r})")
     try:
-        img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR) if data else None
-    except cv2.error:  # some corrupt headers make OpenCV raise instead of returning None
-        img = None
-    if img is None:
-        raise ProtocolError(f"telemetry 'image' is not a decodable image ({len(data)} bytes)")
+        img = imagecheck.decode(data, max_pixels, cv2.IMREAD_COLOR)
+    except imagecheck.ImageCheckError as e:
+        raise ProtocolError(f"telemetry 'image': {e}") from None
     if min(img.shape[:2]) < MIN_IMAGE_SIDE:
         raise ProtocolError(f"telemetry image is {img.shape[1]}x{img.shape[0]}, smaller than "
                             f"{MIN_IMAGE_SIDE} px on a side")
     return img
 
 
-def decode_telemetry(message: str | bytes, max_bytes: int = MAX_MESSAGE_BYTES) -> Telemetry:
+def decode_telemetry(message: str | bytes, max_bytes: int = MAX_MESSAGE_BYTES,
+                     max_pixels: int = imagecheck.DEFAULT_MAX_PIXELS) -> Telemetry:
     """A frame message -> Telemetry, or ProtocolError naming the problem."""
     if isinstance(message, (bytes, bytearray)):
         raise ProtocolError(f"binary message of {len(message)} bytes (the protocol sends JSON text)")
@@ -119,7 +121,7 @@ def decode_telemetry(message: str | bytes, max_bytes: int = MAX_MESSAGE_BYTES) -
         raise ProtocolError(f"message is JSON {type(msg).__name__}, not an object")
     angle, throttle, speed = (_field(msg, k) for k in TELEMETRY_KEYS[:3])
     t = _field(msg, "time") if "time" in msg else None
-    return Telemetry(angle, throttle, speed, decode_image(msg.get("image")), t)
+    return Telemetry(angle, throttle, speed, decode_image(msg.get("image"), max_pixels), t)
 
 
 def _safe(value: float, lo: float, hi: float) -> float:
