@@ -21,6 +21,7 @@ import cv2
 from tqdm import tqdm
 
 import signlane
+from signlane.imagecheck import ImageCheckError, check_integrity, header_size
 # atomic writes live in the runtime package; re-exported here for the generators
 from signlane.fileio import (TMP_SUFFIX, _tmp_name, atomic_imwrite, atomic_write_bytes,  # noqa: F401
                              atomic_write_json, atomic_write_text)
@@ -54,6 +55,30 @@ def remove_stray_tmp(root: str | Path) -> int:
     if count:
         log.info("removed %d stray temporary file(s) from %s", count, root)
     return count
+
+
+def file_intact(path: str | Path) -> bool:
+    """True when `path` holds a whole file that reads back: an image whose header and data check
+    out (JPEG markers and codes, PNG CRCs: signlane.imagecheck), JSON that parses, anything else
+    non-empty. Atomic writes never leave half files, but a crash before the disk flushed them can
+    leave empty or damaged ones under their final names; resume makes those samples again."""
+    p = Path(path)
+    try:
+        data = p.read_bytes()
+    except OSError:
+        return False
+    problem = "empty file" if not data else ""
+    try:
+        if not problem and p.suffix.lower() in (".jpg", ".jpeg", ".png"):
+            header_size(data)
+            check_integrity(data)
+        elif not problem and p.suffix.lower() == ".json":
+            json.loads(data)
+    except (ImageCheckError, ValueError) as e:
+        problem = str(e)
+    if problem:
+        log.warning("%s: %s; making it again", p, problem)
+    return not problem
 
 
 def sample_id(i: int, n: int) -> str:

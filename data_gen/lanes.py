@@ -18,8 +18,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from data_gen.common import (PARTIAL, atomic_imwrite, atomic_write_json, atomic_write_text, partial_dir, prepare_output,
-                             run_indexed, sample_id, write_manifest)
+from data_gen.common import (PARTIAL, atomic_imwrite, atomic_write_json, atomic_write_text, file_intact, partial_dir,
+                             prepare_output, run_indexed, sample_id, write_manifest)
 from signlane.world.render import Sample
 from signlane.world.sampling import HEAVY, FrameSampler, SamplerConfig
 from signlane.world.truth import GroundTruth
@@ -71,11 +71,11 @@ def write_frame(out: Path, sid: str, sample: Sample, drivable: bool, extra: dict
 
 
 def frame_done(out: Path, sid: str, drivable: bool) -> bool:
-    """True when every file of frame `sid` exists (each was written whole, so exists = done)."""
+    """True when every file of frame `sid` exists and reads back whole."""
     names = [f"images/{sid}.jpg", f"masks/{sid}.png", f"{PARTIAL}/labels/{sid}.json"]
     if drivable:
         names.append(f"drivable/{sid}.png")
-    return all((out / p).exists() for p in names)
+    return all((out / p).exists() and file_intact(out / p) for p in names)
 
 
 def merge_labels(out: Path, n: int) -> int:

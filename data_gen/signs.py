@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from data_gen import sign_crops as sc
-from data_gen.common import (PARTIAL, atomic_imwrite, atomic_write_json, partial_dir, prepare_output,
+from data_gen.common import (PARTIAL, atomic_imwrite, atomic_write_json, file_intact, partial_dir, prepare_output,
                              run_indexed, sample_id, write_manifest)
 from signlane.world.art import SIGN_CLASSES
 from signlane.world.render import Sample
@@ -76,9 +76,10 @@ class FrameCropJob:
 
     def done(self, i: int) -> bool:
         rec = self._record(i)
-        if not rec.exists():
+        if not rec.exists() or not file_intact(rec):
             return False
-        return all(Path(self.out, f).exists() for _, f in json.loads(rec.read_text())["crops"])
+        return all(Path(self.out, f).exists() and file_intact(Path(self.out, f))
+                   for _, f in json.loads(rec.read_text())["crops"])
 
     def __call__(self, i: int) -> None:
         rng = np.random.default_rng([self.seed, i, 11])
@@ -113,7 +114,7 @@ class SpriteJob:
         return Path(self.out, self.plan[u], f"s{sample_id(u, len(self.plan))}.png")
 
     def done(self, u: int) -> bool:
-        return self.path(u).exists()
+        return self.path(u).exists() and file_intact(self.path(u))
 
     def __call__(self, u: int) -> None:
         rng = np.random.default_rng([self.seed, u, 12])

@@ -5,6 +5,7 @@ repeated exactly.
 """
 from __future__ import annotations
 
+import math
 import tomllib
 from dataclasses import asdict, dataclass, field, fields, is_dataclass, replace
 from pathlib import Path
@@ -104,7 +105,20 @@ class Config:
             if not sep:
                 raise ValueError(f"--set {item!r}: expected section.key=value")
             cfg = _merge(cfg, _nested(key.strip().split("."), _parse(value.strip())), f"--set {item}")
+        cfg.validate()
         return cfg
+
+    def validate(self) -> None:
+        """Every value within its range (RANGES, CHOICES, ORDERED below); ValueError naming the
+        key and what is allowed. `load` calls it once, on the resolved config."""
+        for key, rule in RANGES.items():
+            rule.check(key, _get(self, key))
+        for key, choices in CHOICES.items():
+            if _get(self, key) not in choices:
+                raise ValueError(f"{key} = {_get(self, key)!r} is not one of {', '.join(choices)}")
+        for small, big in ORDERED:
+            if _get(self, small) > _get(self, big):
+                raise ValueError(f"{small} = {_get(self, small)!r} is more than {big} = {_get(self, big)!r}")
 
 
 def _nested(keys: list[str], value: Any) -> dict:
@@ -136,15 +150,78 @@ def _merge(obj: Any, data: dict, where: str) -> Any:
 
 
 def _coerce(current: Any, value: Any, key: str, where: str) -> Any:
+    if isinstance(current, int) and not isinstance(current, bool) and isinstance(value, float) \
+            and not value.is_integer():
+        raise ValueError(f"{where}: {key} = {value!r} is not a whole number")  # int() would truncate it
     try:
         if isinstance(current, bool):
             if isinstance(value, bool):
                 return value
             raise ValueError
-        if isinstance(current, (int, float)) and not isinstance(value, bool):
-            return type(current)(value)
+        if isinstance(current, int) and not isinstance(value, bool):
+            return int(value)
+        if isinstance(current, float) and not isinstance(value, bool):
+            return float(value)
         if isinstance(current, str):
             return str(value)
     except (TypeError, ValueError):
         pass
     raise ValueError(f"{where}: {key} = {value!r} is not a {type(current).__name__}")
+
+
+# --------------------------------------------------------------------------------------- ranges
+@dataclass(frozen=True)
+class Range:
+    """Allowed values of a number: lo..hi (inclusive), finite; `off` is one more value outside
+    the range that switches the feature off."""
+
+    lo: float
+    hi: float
+    unit: str = ""
+    off: float | None = None
+
+    def check(self, key: str, value: float) -> None:
+        if self.off is not None and value == self.off:
+            return
+        allowed = f"{self.lo:g}..{self.hi:g}{' ' + self.unit if self.unit else ''}"
+        allowed += f" (or {self.off:g}: off)" if self.off is not None else ""
+        if not math.isfinite(value):
+            raise ValueError(f"{key} = {value!r} is not a finite number (allowed: {allowed})")
+        if not self.lo <= value <= self.hi:
+            raise ValueError(f"{key} = {value!r} is outside {allowed}")
+
+
+# Physical limits, generous on purpose (any real car, camera or simulator fits; the defaults are
+# not special): what lies outside makes no sense or breaks the geometry (hfov 0, height 0).
+RANGES: dict[str, Range] = {
+    "camera.hfov_deg": Range(1.0, 179.0, "degrees"),
+    "camera.height_m": Range(0.05, 50.0, "m"),
+    "camera.pitch_deg": Range(-89.0, 89.0, "degrees (positive: down)"),
+    "camera.roll_deg": Range(-90.0, 90.0, "degrees"),
+    "signs.min_score": Range(0.0, 1.0),
+    "signs.confirm_n": Range(1, 1000, "frames"),
+    "signs.confirm_m": Range(1, 1000, "frames"),
+    "control.cruise": Range(0.0, 1.0, "(throttle)"),
+    "drive.max_speed": Range(0.1, 100.0, "m/s"),
+    "drive.cruise_speed": Range(0.0, 100.0, "m/s"),
+    "drive.approach_speed": Range(0.0, 100.0, "m/s"),
+    "drive.stop_hold_s": Range(0.0, 600.0, "s"),
+    "drive.coast_decel": Range(0.01, 100.0, "m/s^2"),
+    "drive.wheelbase_m": Range(0.05, 20.0, "m"),
+    "drive.sign_size_m": Range(0.05, 10.0, "m"),
+    "drive.lanes_width": Range(32, 8192, "px", off=0),
+}
+CHOICES: dict[str, tuple[str, ...]] = {
+    "lanes.variant": ("robust", "published"),
+    "signs.variant": ("robust", "published"),
+}
+ORDERED: list[tuple[str, str]] = [  # (a, b): a <= b
+    ("signs.confirm_n", "signs.confirm_m"),
+    ("drive.cruise_speed", "drive.max_speed"),
+    ("drive.approach_speed", "drive.max_speed"),
+]
+
+
+def _get(cfg: Config, key: str) -> Any:
+    section, name = key.split(".")
+    return getattr(getattr(cfg, section), name)

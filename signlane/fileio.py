@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import json
 import os
+from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, Iterable
+from typing import IO, Any, Iterable, Iterator
 
 import cv2
 import numpy as np
@@ -58,3 +59,20 @@ def atomic_imwrite(path: str | Path, img: np.ndarray, params: Iterable[int] = ()
     if not ok:
         raise OSError(f"{path}: OpenCV could not encode a {img.dtype} {img.shape} image")
     atomic_write_bytes(path, buf.tobytes())
+
+
+@contextmanager
+def atomic_open_text(path: str | Path) -> Iterator[IO[str]]:
+    """A text file written under a temporary name in the same folder and renamed onto `path` when
+    the block ends without an exception (then the temporary is removed instead)."""
+    path = Path(path)
+    tmp = _tmp_name(path)
+    f = open(tmp, "w", encoding="utf-8")
+    try:
+        yield f
+        f.close()
+        os.replace(tmp, path)
+    finally:
+        f.close()
+        if tmp.exists():
+            tmp.unlink()

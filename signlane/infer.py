@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 import sys
 from collections import Counter
+from contextlib import ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Iterator
@@ -18,7 +19,8 @@ from tqdm import tqdm
 
 from signlane.config import Config
 from signlane.draw import VideoOut, draw_boxes, draw_hud, draw_lane, write_image
-from signlane.fileio import atomic_write_text
+from signlane.fileio import atomic_open_text, atomic_write_text
+from signlane.imagecheck import DEFAULT_MAX_PIXELS
 from signlane.media import MediaError, Source, expand, iter_video, read_image, video_info
 from signlane.pipeline import Pipeline
 from signlane.types import Command, Frame, Perception
@@ -85,11 +87,15 @@ def annotate(p: Perception, cmd: Command) -> np.ndarray:
                           f"steer {cmd.steering:+.2f} throttle {cmd.throttle:.2f} {cmd.state}"])
 
 
-def _frames(src: Source) -> Iterator[np.ndarray]:
+class OutputError(ValueError):
+    """An output (--out, --json) that cannot be written: the run stops with this one line."""
+
+
+def _frames(src: Source, max_pixels: int) -> Iterator[np.ndarray]:
     if src.kind == "image":
-        yield read_image(src.path)
+        yield read_image(src.path, max_pixels)
     else:
-        yield from iter_video(src.path)
+        yield from iter_video(src.path, max_pixels)
 
 
 class Writer:
@@ -130,37 +136,46 @@ class Writer:
 
 
 def run_infer(paths: list[str], config: Config, out: Path | None = None, json_path: str | None = None,
-              save_masks: bool = False, progress: bool = True) -> Summary:
-    """Run the pipeline over every input; returns the summary (summary.failed lists bad inputs)."""
+              save_masks: bool = False, progress: bool = True, max_pixels: int = DEFAULT_MAX_PIXELS) -> Summary:
+    """Run the pipeline over every input; returns the summary (summary.failed lists bad inputs).
+    The JSON lines file appears under its name once the run ends; OutputError if an output
+    cannot be written."""
     if save_masks and out is None:
         raise ValueError("--save-masks writes masks beside the annotated images: give --out DIR")
     sources, errors = expand(paths)
     summary = Summary(failed=list(errors))
     for e in errors:
         print(f"signlane infer: {e}", file=sys.stderr)
-    if out is not None:
-        out.mkdir(parents=True, exist_ok=True)
-        atomic_write_text(out / "config.json", json.dumps(config.to_dict(), indent=1))
-    stream = None if json_path is None else (sys.stdout if json_path == "-" else open(json_path, "w"))
-    writer = Writer(out, save_masks, stream)
-    bar = tqdm(total=len(sources), desc="infer", unit="input", disable=not progress or len(sources) < 2,
-               file=sys.stderr)
-    try:
+    with ExitStack() as stack:
+        if out is not None:
+            try:
+                out.mkdir(parents=True, exist_ok=True)
+                atomic_write_text(out / "config.json", json.dumps(config.to_dict(), indent=1))
+            except OSError as e:
+                raise OutputError(f"--out {out}: cannot write there ({e.strerror or e})") from None
+        stream = None
+        if json_path == "-":
+            stream = sys.stdout
+        elif json_path is not None:
+            try:
+                stream = stack.enter_context(atomic_open_text(json_path))
+            except OSError as e:
+                raise OutputError(f"--json {json_path}: cannot write there ({e.strerror or e})") from None
+        writer = Writer(out, save_masks, stream)
+        bar = stack.enter_context(tqdm(total=len(sources), desc="infer", unit="input", file=sys.stderr,
+                                       disable=not progress or len(sources) < 2))
         with Pipeline(config) as pipe:
             for src in sources:
-                ok = _run_source(src, pipe, writer, summary, progress)
+                ok = _run_source(src, pipe, writer, summary, progress, max_pixels)
                 writer.end_source(ok)
                 bar.update(1)
-    finally:
-        bar.close()
-        if stream is not None and stream is not sys.stdout:
-            stream.close()
     return summary
 
 
-def _run_source(src: Source, pipe: Pipeline, writer: Writer, summary: Summary, progress: bool) -> bool:
+def _run_source(src: Source, pipe: Pipeline, writer: Writer, summary: Summary, progress: bool,
+                max_pixels: int) -> bool:
     pipe.reset()
-    frames = _frames(src)
+    frames = _frames(src, max_pixels)
     if src.kind == "video" and progress:
         frames = tqdm(frames, total=video_info(src.path)[1] or None, desc=src.path.name, unit="frame",
                       leave=False, file=sys.stderr)
@@ -168,7 +183,11 @@ def _run_source(src: Source, pipe: Pipeline, writer: Writer, summary: Summary, p
         for i, img in enumerate(frames):
             p, cmd = pipe.step(Frame(img, seq=i))
             summary.add(p)
-            writer.frame(src, i, p, cmd)
+            try:
+                writer.frame(src, i, p, cmd)
+            except OSError as e:
+                writer.end_source(False)
+                raise OutputError(f"cannot write the output for {src.path} ({e.strerror or e})") from None
         return True
     except MediaError as e:
         print(f"signlane infer: {e}", file=sys.stderr)

@@ -13,6 +13,8 @@ from typing import Iterator
 import cv2
 import numpy as np
 
+from signlane.imagecheck import DEFAULT_MAX_PIXELS, ImageCheckError, check_pixels, decode
+
 # FFmpeg's own messages ("moov atom not found") would add noise lines beside ours
 os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
 
@@ -37,7 +39,11 @@ def expand(paths: list[str | Path]) -> tuple[list[Source], list[str]]:
     for raw in paths:
         p = Path(raw)
         if p.is_dir():
-            found = [q for q in sorted(p.iterdir()) if q.is_file() and q.suffix.lower() in IMAGE_EXT | VIDEO_EXT]
+            try:
+                found = [q for q in sorted(p.iterdir()) if q.suffix.lower() in IMAGE_EXT | VIDEO_EXT and q.is_file()]
+            except OSError as e:  # unreadable folder (or an entry in it): that input fails, the rest goes on
+                errors.append(f"{p}: cannot list the folder ({e.strerror or e})")
+                continue
             if not found:
                 errors.append(f"{p}: folder has no images or videos ({', '.join(sorted(IMAGE_EXT | VIDEO_EXT))})")
             sources += [Source(q, _kind(q)) for q in found]
@@ -74,8 +80,9 @@ def to_bgr8(img: np.ndarray, name: str) -> np.ndarray:
     return np.ascontiguousarray(img)
 
 
-def read_image(path: str | Path) -> np.ndarray:
-    """Read an image file as uint8 BGR; truncated JPEGs and undecodable files raise MediaError."""
+def read_image(path: str | Path, max_pixels: int = DEFAULT_MAX_PIXELS) -> np.ndarray:
+    """Read an image file as uint8 BGR; images over `max_pixels`, truncated or corrupt JPEG and
+    PNG data (signlane/imagecheck.py) and undecodable files raise MediaError."""
     p = Path(path)
     try:
         data = p.read_bytes()
@@ -83,22 +90,34 @@ def read_image(path: str | Path) -> np.ndarray:
         raise MediaError(f"{p}: cannot read ({e.strerror})") from None
     if not data:
         raise MediaError(f"{p}: empty file")
-    if data[:2] == b"\xff\xd8" and b"\xff\xd9" not in data[-64:]:
-        # libjpeg may decode a truncated file, filling the rest with grey; refuse it instead
-        raise MediaError(f"{p}: truncated JPEG (no end-of-image marker)")
-    img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
-    if img is None:
-        raise MediaError(f"{p}: not an image OpenCV can decode (corrupt or unsupported format)")
+    try:  # libjpeg would decode a truncated or corrupt file with a warning; refuse it instead
+        img = decode(data, max_pixels, cv2.IMREAD_UNCHANGED)
+    except ImageCheckError as e:
+        raise MediaError(f"{p}: {e}") from None
     return to_bgr8(img, str(p))
 
 
-def iter_video(path: str | Path) -> Iterator[np.ndarray]:
-    """Frames of a video as uint8 BGR; raises MediaError if it cannot be opened or has no frames."""
+# containers whose frame count comes from an index of every frame; others (Matroska, WebM, MPEG)
+# estimate it from the duration, which may be a frame or two off
+INDEXED_VIDEO_EXT = {".avi", ".mp4", ".mov", ".m4v"}
+
+
+def iter_video(path: str | Path, max_pixels: int = DEFAULT_MAX_PIXELS) -> Iterator[np.ndarray]:
+    """Frames of a video as uint8 BGR; raises MediaError if it cannot be opened, its frames are
+    over `max_pixels`, it has no frames, or (after its last readable frame) it ends before the
+    frame count its container gives."""
     p = Path(path)
     cap = cv2.VideoCapture(str(p))
     if not cap.isOpened():
         raise MediaError(f"{p}: cannot open video (corrupt, empty or unsupported codec)")
     try:
+        w, h = int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
+        if w > 0 and h > 0:
+            try:
+                check_pixels(w, h, max_pixels)
+            except ImageCheckError as e:
+                raise MediaError(f"{p}: video frame: {e}") from None
+        expected = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
         n = 0
         while True:
             ok, frame = cap.read()
@@ -108,16 +127,21 @@ def iter_video(path: str | Path) -> Iterator[np.ndarray]:
             yield to_bgr8(frame, f"{p} frame {n - 1}")
         if n == 0:
             raise MediaError(f"{p}: video has no readable frames")
+        slack = 0 if p.suffix.lower() in INDEXED_VIDEO_EXT else max(1, expected // 50)
+        if expected - n > slack:
+            raise MediaError(f"{p}: video ended after {n} of the {expected} frames its container lists "
+                             "(truncated or corrupt)")
     finally:
         cap.release()
 
 
-def iter_frames(source: Source, every: int = 1) -> Iterator[tuple[int, np.ndarray]]:
+def iter_frames(source: Source, every: int = 1,
+                max_pixels: int = DEFAULT_MAX_PIXELS) -> Iterator[tuple[int, np.ndarray]]:
     """(frame index, uint8 BGR) of an image source (index 0) or every `every`-th video frame."""
     if source.kind == "image":
-        yield 0, read_image(source.path)
+        yield 0, read_image(source.path, max_pixels)
         return
-    for i, frame in enumerate(iter_video(source.path)):
+    for i, frame in enumerate(iter_video(source.path, max_pixels)):
         if i % every == 0:
             yield i, frame
 

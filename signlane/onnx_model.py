@@ -3,7 +3,8 @@
 Every signlane model carries (keys prefixed `signlane.`): `task`, `contract` (version of this
 contract), `classes` (JSON list, in output order), `input` (JSON: size [w, h], color, layout,
 scale, mean, std), `data_hash`, `metrics` (JSON). The loader refuses a file whose contract it
-does not understand, with one line naming the file and the problem.
+does not understand, or whose graph does not keep it (one float32 input of the stated size,
+an output with one channel per class), with one line naming the file and the problem.
 """
 from __future__ import annotations
 
@@ -79,10 +80,18 @@ def make_metadata(task: str, classes: list[str], spec: InputSpec, data_hash: str
     return {PREFIX + k: v for k, v in meta.items()}
 
 
-class OnnxModel:
-    """An onnxruntime session plus the contract read from the file's metadata."""
+def _dims(shape) -> str:
+    return "(" + ", ".join(str(d) if d is not None else "?" for d in shape) + ")"
 
-    def __init__(self, path: str | Path, task: str, threads: int = 1):
+
+class OnnxModel:
+    """An onnxruntime session plus the contract read from the file's metadata.
+
+    `output_rank` is the rank of the task's first output, (N, classes) = 2 or (N, classes, h, w)
+    = 4; the graph is checked against the contract at load, and run once on a test batch, so a
+    mismatch is one line here rather than a traceback on some later frame."""
+
+    def __init__(self, path: str | Path, task: str, threads: int = 1, output_rank: int = 2):
         import onnxruntime as ort
         self.path = Path(path)
         where = str(self.path)
@@ -110,11 +119,46 @@ class OnnxModel:
         except (KeyError, ValueError, TypeError):
             raise ModelError(f"{where}: metadata 'classes' is missing or not a JSON list") from None
         self.input = InputSpec.from_json(self.meta.get("input", ""), where)
-        self.input_name = self.session.get_inputs()[0].name
+        self.input_name = self._check_input(where)
+        self._check_output(where, output_rank)
         try:
             self.metrics = json.loads(self.meta.get("metrics", "{}"))
         except ValueError:
             self.metrics = {}
+
+    def _check_input(self, where: str) -> str:
+        """The graph's one input: float32 (N, 3, height, width) as the metadata says."""
+        inputs = self.session.get_inputs()
+        if len(inputs) != 1:
+            raise ModelError(f"{where}: graph has {len(inputs)} inputs ({', '.join(i.name for i in inputs)}); "
+                             "the contract is one image batch")
+        inp = inputs[0]
+        if inp.type != "tensor(float)":
+            raise ModelError(f"{where}: graph input {inp.name!r} is {inp.type}, the contract is tensor(float)")
+        want = (None, 3, self.input.height, self.input.width)
+        shape = list(inp.shape or [])
+        fixed_ok = all(not isinstance(d, int) or w is None or d == w for d, w in zip(shape, want))
+        if len(shape) != 4 or not fixed_ok or isinstance(shape[0], int):
+            raise ModelError(f"{where}: graph input {inp.name!r} is {_dims(shape)}; the metadata says "
+                             f"(batch, 3, {self.input.height}, {self.input.width}) with a free batch size")
+        return inp.name
+
+    def _check_output(self, where: str, rank: int) -> None:
+        """Run a batch of two blank images: the first output must be float (2, classes, ...)."""
+        out = self.session.get_outputs()[0]
+        if out.type != "tensor(float)":
+            raise ModelError(f"{where}: graph output {out.name!r} is {out.type}, the contract is tensor(float)")
+        x = np.zeros((2, 3, self.input.height, self.input.width), np.float32)
+        try:
+            y = np.asarray(self.session.run(None, {self.input_name: x})[0])
+        except Exception as e:  # onnxruntime's own exception types
+            first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+            raise ModelError(f"{where}: graph fails on a test batch ({first[:200]})") from None
+        n = len(self.classes)
+        if y.ndim != rank or y.shape[0] != 2 or y.shape[1] != n:
+            want = "(batch, classes)" if rank == 2 else "(batch, classes, h, w)"
+            raise ModelError(f"{where}: graph output is {_dims(y.shape)} for a batch of 2; the contract is {want} "
+                             f"with the {n} classes the metadata lists")
 
     def run(self, batch: np.ndarray) -> np.ndarray:
         return self.session.run(None, {self.input_name: batch})[0]

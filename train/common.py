@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -23,17 +24,21 @@ class ScaleOut:
 
 
 def build_trainer(out: Path, epochs: int, monitor: str, mode: str, patience: int, scale: ScaleOut,
-                  extra_callbacks: list | None = None, quiet: bool = False) -> tuple[L.Trainer, ModelCheckpoint]:
-    """A Trainer writing CSV + TensorBoard logs and checkpoints (best by `monitor`, and last) to out."""
-    ckpt = ModelCheckpoint(dirpath=out / "checkpoints", filename="best", monitor=monitor, mode=mode,
-                           save_last=True, save_top_k=1)
-    callbacks = [ckpt, EarlyStopping(monitor=monitor, mode=mode, patience=patience)] + (extra_callbacks or [])
+                  extra_callbacks: list | None = None, quiet: bool = False,
+                  deterministic: bool = False) -> tuple[L.Trainer, ModelCheckpoint]:
+    """A Trainer writing CSV + TensorBoard logs and checkpoints to out: best.ckpt (by `monitor`)
+    and last.ckpt after every epoch, so --resume continues from the last finished epoch."""
+    ckpt = ModelCheckpoint(dirpath=out / "checkpoints", filename="best", monitor=monitor, mode=mode, save_top_k=1)
+    # its own callback: ModelCheckpoint(save_last=True) writes last only when `monitor` improves
+    last = ModelCheckpoint(dirpath=out / "checkpoints", filename="last", monitor=None, save_top_k=1,
+                           every_n_epochs=1, enable_version_counter=False)
+    callbacks = [ckpt, last, EarlyStopping(monitor=monitor, mode=mode, patience=patience)] + (extra_callbacks or [])
     devices = int(scale.devices) if str(scale.devices).isdigit() else scale.devices
     trainer = L.Trainer(max_epochs=epochs, default_root_dir=out, callbacks=callbacks,
                         logger=[CSVLogger(out, name="logs"), TensorBoardLogger(out, name="tensorboard")],
                         accelerator=scale.accelerator, devices=devices, num_nodes=scale.num_nodes,
                         strategy=scale.strategy, enable_progress_bar=not quiet, enable_model_summary=not quiet,
-                        log_every_n_steps=10, deterministic=False)
+                        log_every_n_steps=10, deterministic=deterministic)
     return trainer, ckpt
 
 
@@ -41,12 +46,26 @@ def resume_path(out: Path, resume: bool) -> str | None:
     """The last checkpoint to resume from, when asked and one exists."""
     last = out / "checkpoints" / "last.ckpt"
     if resume and last.exists():
+        check_checkpoint(last)
         return str(last)
     if resume:
         raise ValueError(f"--resume: no checkpoint at {last}")
     if last.exists():
         raise ValueError(f"{out} already holds a training run; pass --resume to continue it or choose another --out")
     return None
+
+
+def check_checkpoint(path: Path) -> None:
+    """A checkpoint torch can open: a whole zip archive whose members pass their CRCs (a run
+    killed while saving leaves a truncated file); ValueError in one line otherwise."""
+    hint = "delete it to start the run again, or copy best.ckpt over it to continue from the best epoch"
+    try:
+        with zipfile.ZipFile(path) as z:
+            bad = z.testzip()
+    except (zipfile.BadZipFile, OSError, EOFError) as e:
+        raise ValueError(f"--resume: {path} is damaged ({e}); {hint}") from None
+    if bad is not None:
+        raise ValueError(f"--resume: {path} is damaged ({bad} fails its CRC check); {hint}")
 
 
 def save_run_config(out: Path, config: dict) -> None:

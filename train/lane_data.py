@@ -61,9 +61,10 @@ def split_of(key: str, val_fraction: float) -> str:
     return "val" if (h % 10000) / 10000.0 < val_fraction else "train"
 
 
-def train_augment() -> A.Compose:
+def train_augment(seed: int | None = None) -> A.Compose:
     """Other cameras (mirror, roll, zoom, shift, perspective), light, weather and sensors beyond
-    the renderer's, applied to frame and mask together (the mask by nearest neighbour)."""
+    the renderer's, applied to frame and mask together (the mask by nearest neighbour); `seed`
+    makes the draws repeat (albumentations keeps its own generator)."""
     return A.Compose([
         A.HorizontalFlip(p=0.5),  # a mirrored road is still a road: paint stays paint
         A.Affine(scale=(0.85, 1.15), translate_percent=(-0.06, 0.06), rotate=(-6, 6), p=0.6),
@@ -76,7 +77,7 @@ def train_augment() -> A.Compose:
         A.OneOf([A.MotionBlur(blur_limit=(3, 7)), A.GaussianBlur(sigma_limit=(0.3, 1.5))], p=0.3),
         A.GaussNoise(std_range=(0.01, 0.08), p=0.35),
         A.ImageCompression(quality_range=(20, 95), p=0.4),
-    ])
+    ], seed=seed)
 
 
 def read_pair(item: Item) -> tuple[np.ndarray, np.ndarray]:
@@ -108,8 +109,9 @@ class FrameDataset(Dataset):
 
 class LaneDataModule(L.LightningDataModule):
     def __init__(self, roots: list[str | Path], batch_size: int = 32, val_fraction: float = 0.1,
-                 spec: InputSpec = DEFAULT_SPEC, workers: int = 0):
+                 spec: InputSpec = DEFAULT_SPEC, workers: int = 0, seed: int = 0):
         super().__init__()
+        self.seed = seed
         self.roots = [Path(r) for r in roots]
         self.batch_size, self.val_fraction, self.spec, self.workers = batch_size, val_fraction, spec, workers
 
@@ -122,8 +124,9 @@ class LaneDataModule(L.LightningDataModule):
                              f"{len(self.val_items)} val")
 
     def train_dataloader(self) -> DataLoader:
-        return DataLoader(FrameDataset(self.train_items, self.spec, train_augment()), batch_size=self.batch_size,
-                          shuffle=True, num_workers=self.workers, persistent_workers=self.workers > 0,
+        return DataLoader(FrameDataset(self.train_items, self.spec, train_augment(self.seed)),
+                          batch_size=self.batch_size, shuffle=True, num_workers=self.workers,
+                          persistent_workers=self.workers > 0,
                           drop_last=len(self.train_items) > 2 * self.batch_size)
 
     def val_dataloader(self) -> DataLoader:

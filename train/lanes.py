@@ -23,18 +23,19 @@ log = logging.getLogger(__name__)
 def train_lanes(data: list[str | Path], out: str | Path, epochs: int = 15, batch_size: int = 32, lr: float = 4e-3,
                 width: int = 16, val_fraction: float = 0.1, patience: int = 5, seed: int = 0, resume: bool = False,
                 scale: ScaleOut = ScaleOut(), workers: int = 1, quiet: bool = False, pos_weight: float = 4.0,
-                eval_frames: int = 300, threads: int = 0) -> dict:
+                eval_frames: int = 300, threads: int = 0, deterministic: bool = False) -> dict:
     """Train; writes checkpoints/, logs/, tensorboard/, samples/epoch_<k>.png, config.json and
     report.json (the best checkpoint's val scores).
     threads > 0 caps torch's CPU threads: on a busy machine one thread trains several times faster
-    than threads that wait for each other on shared cores."""
+    than threads that wait for each other on shared cores. deterministic asks torch for
+    deterministic algorithms (the same seed then repeats a run exactly, on GPUs too)."""
     import lightning as L
     out = Path(out)
     if threads > 0:
         torch.set_num_threads(threads)
     ckpt_path = resume_path(out, resume)
     L.seed_everything(seed, workers=True)
-    dm = LaneDataModule(data, batch_size, val_fraction, DEFAULT_SPEC, workers)
+    dm = LaneDataModule(data, batch_size, val_fraction, DEFAULT_SPEC, workers, seed)
     dm.setup()
     task = LaneTask(width=width, lr=lr, pos_weight=pos_weight, input_size=(DEFAULT_SPEC.width, DEFAULT_SPEC.height))
     task.samples_dir = out / "samples"
@@ -43,10 +44,12 @@ def train_lanes(data: list[str | Path], out: str | Path, epochs: int = 15, batch
                          torch.stack([val[i][1] for i in range(len(val))]))
     save_run_config(out, {"task": "lanes", "data": [str(d) for d in data], "epochs": epochs,
                           "batch_size": batch_size, "lr": lr, "width": width, "pos_weight": pos_weight,
-                          "val_fraction": val_fraction, "seed": seed, "input": [DEFAULT_SPEC.width, DEFAULT_SPEC.height],
+                          "val_fraction": val_fraction, "seed": seed, "deterministic": deterministic,
+                          "input": [DEFAULT_SPEC.width, DEFAULT_SPEC.height],
                           "parameters": count_parameters(task.net), "train_frames": len(dm.train_items),
                           "val_frames": len(dm.val_items), "threads": threads, "scale_out": scale.__dict__})
-    trainer, ckpt = build_trainer(out, epochs, "val/iou", "max", patience, scale, quiet=quiet)
+    trainer, ckpt = build_trainer(out, epochs, "val/iou", "max", patience, scale, quiet=quiet,
+                                  deterministic=deterministic)
     t0 = time.perf_counter()
     trainer.fit(task, datamodule=dm, ckpt_path=ckpt_path)
     seconds = time.perf_counter() - t0

@@ -45,11 +45,12 @@ def split_of(path: Path, val_fraction: float) -> str:
     return "val" if (h % 10000) / 10000.0 < val_fraction else "train"
 
 
-def train_augment(strength: float = 1.0) -> A.Compose:
+def train_augment(strength: float = 1.0, seed: int | None = None) -> A.Compose:
     """Appearance far beyond the renderer's: other cameras, printers, light and weather.
     No flips (left/right would swap) and small hue shifts (blue must stay blue, red red).
     `strength` (0..1) scales how often each change is applied (the generator's crops already
-    carry blur, noise, exposure and occlusion of their own)."""
+    carry blur, noise, exposure and occlusion of their own). `seed` makes the draws repeat
+    (albumentations keeps its own generator, which the global seed does not reach)."""
     s = strength
     return A.Compose([
         A.Affine(scale=(0.8, 1.15), translate_percent=(-0.1, 0.1), rotate=(-12, 12), shear=(-8, 8), p=0.8 * s),
@@ -62,7 +63,7 @@ def train_augment(strength: float = 1.0) -> A.Compose:
         A.GaussNoise(std_range=(0.01, 0.08), p=0.35 * s),
         A.CoarseDropout(num_holes_range=(1, 2), hole_height_range=(0.1, 0.3), hole_width_range=(0.1, 0.3), p=0.2 * s),
         A.ImageCompression(quality_range=(20, 95), p=0.4 * s),
-    ])
+    ], seed=seed)
 
 
 class CropDataset(Dataset):
@@ -85,9 +86,9 @@ class CropDataset(Dataset):
 
 class SignDataModule(L.LightningDataModule):
     def __init__(self, roots: list[str | Path], batch_size: int = 128, val_fraction: float = 0.1,
-                 spec: InputSpec = DEFAULT_SPEC, workers: int = 0, augment: float = 1.0):
+                 spec: InputSpec = DEFAULT_SPEC, workers: int = 0, augment: float = 1.0, seed: int = 0):
         super().__init__()
-        self.augment = augment
+        self.augment, self.seed = augment, seed
         self.roots = [Path(r) for r in roots]
         self.batch_size, self.val_fraction, self.spec, self.workers = batch_size, val_fraction, spec, workers
 
@@ -108,7 +109,7 @@ class SignDataModule(L.LightningDataModule):
         return torch.tensor(w / w.mean(), dtype=torch.float32)
 
     def train_dataloader(self) -> DataLoader:
-        return DataLoader(CropDataset(self.train_items, self.spec, train_augment(self.augment)),
+        return DataLoader(CropDataset(self.train_items, self.spec, train_augment(self.augment, self.seed)),
                           batch_size=self.batch_size, shuffle=True, num_workers=self.workers, persistent_workers=self.workers > 0,
                           drop_last=len(self.train_items) > 2 * self.batch_size)
 

@@ -21,12 +21,14 @@ log = logging.getLogger(__name__)
 def train_signs(data: list[str | Path], out: str | Path, epochs: int = 20, batch_size: int = 128, lr: float = 3e-3,
                 size: int = 32, val_fraction: float = 0.1, patience: int = 6, seed: int = 0, resume: bool = False,
                 scale: ScaleOut = ScaleOut(), workers: int = 0, quiet: bool = False, width: int = 16,
-                class_weights: str = "sqrt", threads: int = 0, augment: float = 1.0) -> dict:
+                class_weights: str = "sqrt", threads: int = 0, augment: float = 1.0,
+                deterministic: bool = False) -> dict:
     """Train; writes checkpoints/, logs/, tensorboard/, config.json, confusion.png, errors_<class>.png.
     class_weights 'sqrt' weighs the loss by square-root inverse class frequency; 'none' weighs every
     crop alike, so the many 'unknown' crops pull harder against taking a non-sign for a sign.
     threads > 0 caps torch's CPU threads (see train_lanes); augment (0..1) scales how often each
-    training augmentation is applied."""
+    training augmentation is applied; deterministic asks torch for deterministic algorithms (the
+    same seed then repeats a run exactly, on GPUs too)."""
     if class_weights not in ("sqrt", "none"):
         raise ValueError(f"class_weights must be 'sqrt' or 'none', not {class_weights!r}")
     if not 0.0 <= augment <= 1.0:
@@ -40,7 +42,7 @@ def train_signs(data: list[str | Path], out: str | Path, epochs: int = 20, batch
     if threads > 0:
         torch.set_num_threads(threads)
     spec = replace(DEFAULT_SPEC, width=size, height=size)
-    dm = SignDataModule(data, batch_size, val_fraction, spec, workers, augment)
+    dm = SignDataModule(data, batch_size, val_fraction, spec, workers, augment, seed)
     dm.setup()
     weights = dm.class_weights().tolist() if class_weights == "sqrt" else None
     task = SignTask(size=size, lr=lr, epochs=epochs, class_weights=weights, width=width)
@@ -48,9 +50,11 @@ def train_signs(data: list[str | Path], out: str | Path, epochs: int = 20, batch
                           "batch_size": batch_size, "lr": lr, "size": size, "width": width, "class_weights": class_weights,
                           "augment": augment,
                           "val_fraction": val_fraction, "workers": workers, "threads": threads,
-                          "seed": seed, "train_crops": len(dm.train_items), "val_crops": len(dm.val_items),
+                          "seed": seed, "deterministic": deterministic, "train_crops": len(dm.train_items),
+                          "val_crops": len(dm.val_items),
                           "scale_out": scale.__dict__})
-    trainer, ckpt = build_trainer(out, epochs, "val/acc", "max", patience, scale, quiet=quiet)
+    trainer, ckpt = build_trainer(out, epochs, "val/acc", "max", patience, scale, quiet=quiet,
+                                  deterministic=deterministic)
     t0 = time.perf_counter()
     trainer.fit(task, datamodule=dm, ckpt_path=ckpt_path)
     seconds = time.perf_counter() - t0

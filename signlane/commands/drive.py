@@ -5,7 +5,7 @@ import argparse
 from dataclasses import replace
 from pathlib import Path
 
-from signlane.commands.common import UserError, positive
+from signlane.commands.common import UserError, pixels_arg, positive
 from signlane.commands.perception import _add_config_args, _config
 
 
@@ -49,6 +49,9 @@ def add_drive(sub) -> None:
     p.add_argument("--max-bytes", type=positive, default=8 * 1024 * 1024, metavar="N",
                    help="largest frame message accepted, bytes (default 8 MB); larger ones get the safe answer, "
                         "and ones over twice this close the connection")
+    p.add_argument("--max-pixels", type=pixels_arg, default=4096 * 4096, metavar="WxH",
+                   help="largest image accepted, read from its header before decoding (default 4096x4096); "
+                        "larger ones get the safe answer")
     p.add_argument("--log-every", type=float, default=10.0, metavar="SEC",
                    help="seconds between rate/latency log lines (default 10)")
     _add_config_args(p)
@@ -58,6 +61,7 @@ def add_drive(sub) -> None:
 def _run_drive(args) -> int:
     from signlane.onnx_model import ModelError
     from signlane.sim.drive_record import RecordError
+    from signlane.sim.driver import SignStageError
     from signlane.sim.server import ServerOptions, run_server
     cfg = _config(args)
     if args.signs is not None:
@@ -66,12 +70,12 @@ def _run_drive(args) -> int:
         raise UserError(f"--port must be 0..65535, not {args.port}")
     if args.log_every <= 0:
         raise UserError(f"--log-every must be > 0, not {args.log_every}")
-    options = ServerOptions(host=args.host, port=args.port, max_bytes=args.max_bytes, record=args.record,
-                            show_every=args.show_every or 0, show_dir=args.show_dir, sync_signs=args.sync_signs,
-                            log_every_s=args.log_every)
+    options = ServerOptions(host=args.host, port=args.port, max_bytes=args.max_bytes, max_pixels=args.max_pixels,
+                            record=args.record, show_every=args.show_every or 0, show_dir=args.show_dir,
+                            sync_signs=args.sync_signs, log_every_s=args.log_every)
     try:
         run_server(cfg, options)
-    except (RecordError, ModelError, ValueError) as e:
+    except (RecordError, ModelError, SignStageError, ValueError) as e:
         raise UserError(str(e)) from None
     except OSError as e:  # the port is taken, the address is not ours, ...
         raise UserError(f"cannot serve on {args.host}:{args.port}: {e.strerror or e}") from None

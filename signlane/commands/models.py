@@ -41,7 +41,8 @@ def add_train(sub) -> None:
                             "crops 0.5 scored no better)")
     signs.add_argument("--seed", type=int, default=0, help="training seed (default 0)")
     _add_cpu_args(signs, workers=1)
-    signs.add_argument("--resume", action="store_true", help="continue from --out/checkpoints/last.ckpt")
+    signs.add_argument("--resume", action="store_true",
+                       help="continue from --out/checkpoints/last.ckpt (saved after every epoch)")
     _add_scale_out(signs)
     _add_train_lanes(kinds)
     p.set_defaults(func=_run_train)
@@ -64,7 +65,8 @@ def _add_train_lanes(kinds) -> None:
     lanes.add_argument("--patience", type=positive, default=5, help="early-stopping patience in epochs (default 5)")
     lanes.add_argument("--seed", type=int, default=0, help="training seed (default 0)")
     _add_cpu_args(lanes, workers=1)
-    lanes.add_argument("--resume", action="store_true", help="continue from --out/checkpoints/last.ckpt")
+    lanes.add_argument("--resume", action="store_true",
+                       help="continue from --out/checkpoints/last.ckpt (saved after every epoch)")
     _add_scale_out(lanes)
 
 
@@ -73,6 +75,9 @@ def _add_cpu_args(p, workers: int) -> None:
                    help=f"data-loader worker processes: augmentation beside the training step (default {workers})")
     p.add_argument("--threads", type=int, default=0,
                    help="torch CPU threads (default 0 = torch's choice; 1 is fastest on a busy machine)")
+    p.add_argument("--deterministic", action="store_true",
+                   help="deterministic torch algorithms, so the same --seed repeats a run exactly (slower on GPUs; "
+                        "augmentations follow --seed either way)")
 
 
 def _run_train(args) -> int:
@@ -84,7 +89,8 @@ def _run_train(args) -> int:
         raise UserError(f"training needs the train extra (pip install 'signlane[train]'): {e}") from None
     shared = dict(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr, width=args.width,
                   patience=args.patience, seed=args.seed, resume=args.resume, workers=args.workers,
-                  threads=args.threads, scale=ScaleOut(args.accelerator, args.devices, args.num_nodes, args.strategy))
+                  threads=args.threads, deterministic=args.deterministic,
+                  scale=ScaleOut(args.accelerator, args.devices, args.num_nodes, args.strategy))
     if args.kind == "lanes":
         train, own = train_lanes, dict(pos_weight=args.pos_weight)
     else:

@@ -6,7 +6,7 @@ import json
 import sys
 from pathlib import Path
 
-from signlane.commands.common import UserError, positive, size_arg
+from signlane.commands.common import UserError, pixels_arg, positive, size_arg
 
 
 # --- infer -------------------------------------------------------------------------------------
@@ -43,6 +43,9 @@ def add_infer(sub) -> None:
                         "--save-masks then writes its marking mask) (default from config)")
     p.add_argument("--save-masks", action="store_true", help="write <stem>_lane.png (0/255) beside each annotated image")
     p.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bars")
+    p.add_argument("--max-pixels", type=pixels_arg, default=4096 * 4096, metavar="WxH",
+                   help="refuse images and video frames with more pixels than this, read from the file's header "
+                        "before decoding (default 4096x4096)")
     _add_config_args(p)
     p.set_defaults(func=_run_infer)
 
@@ -53,7 +56,7 @@ def _run_infer(args) -> int:
     cfg = _config(args)
     try:
         summary = run_infer(args.paths, cfg, out=args.out, json_path=args.json_path, save_masks=args.save_masks,
-                            progress=args.progress)
+                            progress=args.progress, max_pixels=args.max_pixels)
     except (ValueError, ModelError) as e:
         raise UserError(str(e)) from None
     print(summary.table(), file=sys.stderr)

@@ -98,9 +98,13 @@ def _run_sim(args) -> int:
                         random_looks=args.random_looks, looks_seed=args.seed, laps=args.laps,
                         max_seconds=args.max_seconds, decimal=args.decimal)
     url = None if args.with_driver else args.url
+    from signlane.onnx_model import ModelError
+    from signlane.sim.driver import SignStageError
     try:
         rep = run_session(track, sim_cfg, args.out, config, url=url, lockstep=args.lockstep,
                           with_driver=args.with_driver, video=args.video)
+    except (ModelError, SignStageError, ValueError) as e:  # the driver cannot be built: as `drive` says it
+        raise UserError(str(e)) from None
     except OSError as e:
         raise UserError(f"cannot reach the drive server at {args.url} ({e}); start one with `signlane drive` "
                         "or use --with-driver") from None

@@ -51,7 +51,7 @@ class LaneSegModel:
     """The segmentation model with its contract read from the ONNX metadata."""
 
     def __init__(self, path: str | Path = DEFAULT_MODEL, threads: int = 1):
-        self.model = OnnxModel(path, TASK, threads)
+        self.model = OnnxModel(path, TASK, threads, output_rank=4)
         if tuple(self.model.classes) != CLASSES:
             raise ModelError(f"{path}: classes {self.model.classes} are not {list(CLASSES)}")
         self.spec = self.model.input

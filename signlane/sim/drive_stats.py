@@ -15,29 +15,53 @@ log = logging.getLogger("signlane.drive")
 
 
 class ErrorLog:
-    """One log line per distinct problem; repeats within `window_s` are counted, not printed.
+    """One log line per distinct problem of each source; repeats within `window_s` are counted,
+    not printed.
 
     A misbehaving client can send thousands of identical bad frames a minute; the first line says
-    what is wrong, and the next line for that problem (after the window) says how often it recurred.
-    Messages that differ only in numbers (byte counts, sizes) count as the same problem."""
+    what is wrong, and the next line for that problem (after the window, or `flush` when the
+    client leaves) says how often it recurred. Messages of one source (`who`, e.g. "client 3")
+    that differ only in numbers (byte counts, sizes) count as the same problem; another source's
+    problem is never folded into them."""
 
     def __init__(self, window_s: float = 10.0, logger: logging.Logger = log):
         self.window_s = window_s
         self.logger = logger
-        self._seen: dict[str, tuple[float, int]] = {}  # key -> (time last printed, repeats since)
+        # (who, text with numbers masked) -> [time last printed, repeats since, last repeat's line]
+        self._seen: dict[tuple[str, str], list] = {}
 
-    def warning(self, text: str, now: float | None = None) -> bool:
-        """Log `text` unless it was logged within the window; True if it was printed."""
+    def warning(self, text: str, now: float | None = None, who: str = "") -> bool:
+        """Log `who: text` unless it was logged within the window; True if it was printed."""
         now = time.monotonic() if now is None else now
-        key = re.sub(r"\d+", "#", text)
-        last, repeats = self._seen.get(key, (None, 0))
-        if last is not None and now - last < self.window_s:
-            self._seen[key] = (last, repeats + 1)
+        key = (who, re.sub(r"\d+", "#", text))
+        line = f"{who}: {text}" if who else text
+        seen = self._seen.get(key)
+        if seen is not None and now - seen[0] < self.window_s:
+            seen[1] += 1
+            seen[2] = line
             return False
-        more = f" (and {repeats} more like it in the last {now - last:.0f} s)" if repeats else ""
-        self.logger.warning("%s%s", text, more)
-        self._seen[key] = (now, 0)
+        more = f" (and {seen[1]} more like it in the last {now - seen[0]:.0f} s)" if seen and seen[1] else ""
+        self.logger.warning("%s%s", line, more)
+        self._seen[key] = [now, 0, line]
         return True
+
+    def flush(self, who: str | None = None, now: float | None = None) -> int:
+        """A summary line for each problem repeated since it was printed: every problem of `who`
+        (a source that is gone), or with `who` None those whose window has passed (call it now and
+        then: it also forgets problems with nothing left to report). Returns the lines printed."""
+        now = time.monotonic() if now is None else now
+        printed = 0
+        for key, (t, repeats, line) in list(self._seen.items()):
+            if (who is not None and key[0] != who) or (who is None and now - t < self.window_s):
+                continue
+            if repeats:
+                self.logger.warning("%s (repeated %d times in the last %.0f s)", line, repeats, now - t)
+                printed += 1
+            if who is not None or not repeats:
+                del self._seen[key]  # nothing left to report: the next occurrence prints again
+            else:
+                self._seen[key] = [now, 0, line]
+        return printed
 
 
 @dataclass

@@ -46,14 +46,27 @@ def sign_positions(confirmed: list[SignDetection], found: tuple[SignDetection, .
     return out
 
 
+class SignStageError(RuntimeError):
+    """The sign stage failed on a frame: the frame gets the safe answer; the stage is tried again
+    on the next one (str(e) is one line)."""
+
+
+def _stage_failure(e: Exception) -> SignStageError:
+    first = (str(e).strip().splitlines() or [""])[0]
+    return SignStageError(f"sign stage failed: {type(e).__name__}" + (f": {first}" if first else ""))
+
+
 class _SignWorker:
-    """Runs the sign stage on the newest submitted frame in a thread; never blocks the caller."""
+    """Runs the sign stage on the newest submitted frame in a thread; never blocks the caller.
+    A failure is kept until the stage next succeeds: `latest()` raises it meanwhile, so the car
+    never drives on as though there were no signs."""
 
     def __init__(self, stage):
         self.stage = stage
         self._lock = threading.Lock()
         self._job = None
         self._result: tuple = ((), [], None)
+        self._error: SignStageError | None = None
         self._wake = threading.Event()
         self._stop = False
         self._thread = threading.Thread(target=self._run, daemon=True, name="signs")
@@ -66,6 +79,8 @@ class _SignWorker:
 
     def latest(self) -> tuple:
         with self._lock:
+            if self._error is not None:
+                raise self._error
             result, self._result = self._result, ((), self._result[1], None)
         return result  # each result is used once; the confirmed list stays
 
@@ -77,9 +92,14 @@ class _SignWorker:
                 job, self._job = self._job, None
             if job is None:
                 continue
-            found, confirmed = self.stage.step(job[0])
+            try:
+                found, confirmed = self.stage.step(job[0])
+            except Exception as e:  # reported to the driving thread; the next frame tries again
+                with self._lock:
+                    self._error = _stage_failure(e)
+                continue
             with self._lock:
-                self._result = (found, list(confirmed), job[1])
+                self._result, self._error = (found, list(confirmed), job[1]), None
 
     def close(self) -> None:
         self._stop = True
@@ -163,7 +183,10 @@ class Driver:
         if self.signs is None:
             return ()
         if self._worker is None:
-            found, confirmed = self.signs.step(image)
+            try:
+                found, confirmed = self.signs.step(image)
+            except Exception as e:
+                raise _stage_failure(e) from e
             at = pose
         else:
             self._worker.submit(image, pose)

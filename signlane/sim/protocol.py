@@ -27,6 +27,8 @@ from decimal import ROUND_HALF_UP, Decimal
 import cv2
 import numpy as np
 
+from signlane import imagecheck
+
 TELEMETRY_KEYS = ("steering_angle", "throttle", "speed", "image")
 MAX_MESSAGE_BYTES = 8 * 1024 * 1024
 MIN_IMAGE_SIDE = 16
@@ -176,22 +178,21 @@ def _image_bytes(b64: object) -> bytes:
     return data
 
 
-def _image_from_bytes(data: bytes) -> np.ndarray:
+def _image_from_bytes(data: bytes, max_pixels: int = imagecheck.DEFAULT_MAX_PIXELS) -> np.ndarray:
     try:
-        img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
-    except cv2.error:  # some corrupt headers make OpenCV raise instead of returning None
-        img = None
-    if img is None:
-        raise ProtocolError(f"telemetry 'image' is not a decodable image ({len(data)} bytes)")
+        img = imagecheck.decode(data, max_pixels, cv2.IMREAD_COLOR)
+    except imagecheck.ImageCheckError as e:
+        raise ProtocolError(f"telemetry 'image': {e}") from None
     if min(img.shape[:2]) < MIN_IMAGE_SIDE:
         raise ProtocolError(f"telemetry image is {img.shape[1]}x{img.shape[0]}, smaller than "
                             f"{MIN_IMAGE_SIDE} px on a side")
     return img
 
 
-def decode_image(b64: object) -> np.ndarray:
-    """base64 JPEG (or PNG) -> uint8 (H, W, 3) BGR, or ProtocolError."""
-    return _image_from_bytes(_image_bytes(b64))
+def decode_image(b64: object, max_pixels: int = imagecheck.DEFAULT_MAX_PIXELS) -> np.ndarray:
+    """base64 JPEG (or PNG) -> uint8 (H, W, 3) BGR, or ProtocolError (also for more than
+    `max_pixels` pixels and for corrupt data: see signlane/imagecheck.py)."""
+    return _image_from_bytes(_image_bytes(b64), max_pixels)
 
 
 def _text(message: object, what: str) -> str:
@@ -206,7 +207,8 @@ def _text(message: object, what: str) -> str:
     return message
 
 
-def decode_telemetry(message: str | bytes, max_bytes: int = MAX_MESSAGE_BYTES) -> Telemetry:
+def decode_telemetry(message: str | bytes, max_bytes: int = MAX_MESSAGE_BYTES,
+                     max_pixels: int = imagecheck.DEFAULT_MAX_PIXELS) -> Telemetry:
     """A frame message (binary UTF-8, as VIA sends, or text) -> Telemetry in SI units, or
     ProtocolError naming the problem; it raises nothing else. The size limit counts bytes of a
     binary frame and characters of a text one."""
@@ -225,7 +227,7 @@ def decode_telemetry(message: str | bytes, max_bytes: int = MAX_MESSAGE_BYTES) -
     angle, pedal, mph = (parse_number(k, msg[k]) for k in TELEMETRY_KEYS[:3])
     t = parse_number("time", msg["time"]) if "time" in msg else None
     data = _image_bytes(msg["image"])
-    return Telemetry(angle, pedal, mph * MPS_PER_MPH, _image_from_bytes(data), t, data)
+    return Telemetry(angle, pedal, mph * MPS_PER_MPH, _image_from_bytes(data, max_pixels), t, data)
 
 
 # --- replies ---------------------------------------------------------------------------------

@@ -31,9 +31,10 @@ from websockets.asyncio.server import serve as ws_serve
 from websockets.exceptions import ConnectionClosed
 
 from signlane.config import Config
+from signlane.imagecheck import DEFAULT_MAX_PIXELS
 from signlane.sim.drive_record import DiskWriter, Recorder, Shower, sent_command
 from signlane.sim.drive_stats import ErrorLog, Rates
-from signlane.sim.driver import Driver
+from signlane.sim.driver import Driver, SignStageError
 from signlane.sim.protocol import (MAX_MESSAGE_BYTES, SAFE_COMMAND, ProtocolError, Telemetry, decode_telemetry,
                                    encode_command)
 
@@ -53,6 +54,7 @@ class ServerOptions:
     host: str = DEFAULT_HOST
     port: int = DEFAULT_PORT  # 0 = any free port (see DriveServer.port)
     max_bytes: int = MAX_MESSAGE_BYTES
+    max_pixels: int = DEFAULT_MAX_PIXELS  # larger images (from their header) get the safe answer undecoded
     record: Path | None = None  # driving dataset folder
     show_every: int = 0  # write every N-th driven frame annotated; 0 = never
     show_dir: Path | None = None  # where annotated frames go (default: drive_frames/)
@@ -70,6 +72,7 @@ class _Result:
     perception: Any = None
     command: Any = None
     telemetry: Any = None
+    cancelled: bool = False  # the connection closed before the frame was driven
 
 
 class _Server:
@@ -102,6 +105,7 @@ class _Server:
             line = self.rates.report(self.clients)
             if line:
                 log.info("%s", line)
+            self.errors.flush()  # how often each problem recurred, once its window has passed
 
     def close(self) -> dict:
         """Finish pending work and writes; the run's totals."""
@@ -123,6 +127,7 @@ class _Connection:
         self.latest = SAFE_COMMAND  # answer for frames that arrive while the driver is busy
         self.job: asyncio.Task | None = None
         self.frames = self.driven = 0
+        self.closed = False  # set once the client is gone: work not yet driven is dropped
 
     async def run(self) -> None:
         peer = self.ws.remote_address
@@ -133,19 +138,19 @@ class _Connection:
             async for message in self.ws:
                 await self.on_message(message)
             log.info("client %d disconnected after %d frames", self.cid, self.frames)
-        except ConnectionClosed as e:  # closed without a close frame, mid-message, or too big
-            why = f"code {e.rcvd.code} {e.rcvd.reason!r}" if e.rcvd else "no close frame"
-            if e.sent and e.sent.code == 1009:
-                why = f"message over {self.server.options.max_bytes * WS_SIZE_FACTOR} bytes, closed with 1009"
-            log.info("client %d dropped after %d frames (%s)", self.cid, self.frames, why)
+        except ConnectionClosed as e:  # closed without a close frame, mid-message, too big, not UTF-8
+            log.info("client %d dropped after %d frames (%s)", self.cid, self.frames,
+                     why_closed(e, self.server.options.max_bytes * WS_SIZE_FACTOR))
         except Exception as e:  # e.g. the driver cannot be built: end this connection, not the server
             log.error("client %d: %s: %s; closing its connection", self.cid, type(e).__name__, e)
             await self.ws.close(1011, "driver error")
         finally:
+            self.closed = True
             if self.job is not None:
                 await asyncio.gather(self.job, return_exceptions=True)  # never close a driver mid-step
             if self.driver is not None:
                 self.driver.close()
+            self.server.errors.flush(who=f"client {self.cid}")
 
     async def on_message(self, message: str | bytes) -> None:
         t_recv = time.perf_counter()
@@ -155,7 +160,7 @@ class _Connection:
         problem = self.precheck(message)
         if problem:
             rates.bad += 1
-            self.server.errors.warning(f"client {self.cid}: {problem}; answered with the safe command")
+            self.server.errors.warning(f"{problem}; answered with the safe command", who=f"client {self.cid}")
             await self.send(SAFE_COMMAND, t_recv)
         elif self.job is not None and not self.job.done():
             rates.skipped += 1
@@ -174,12 +179,17 @@ class _Connection:
         loop = asyncio.get_running_loop()
         try:
             res = await loop.run_in_executor(self.server.pool, self.work, message)
+        except SignStageError as e:  # the car must not drive on without the signs it was asked to obey
+            res = _Result(SAFE_COMMAND, 0.0, str(e))
         except Exception as e:  # a driver bug on some frame must not end the connection
             res = _Result(SAFE_COMMAND, 0.0, f"driver failed: {type(e).__name__}: {e}")
+        if res.cancelled:
+            log.debug("client %d: gone while its frame was decoded; not driven", self.cid)
+            return
         rates = self.server.rates
         if res.error:
             rates.bad += 1
-            self.server.errors.warning(f"client {self.cid}: {res.error}; answered with the safe command")
+            self.server.errors.warning(f"{res.error}; answered with the safe command", who=f"client {self.cid}")
         else:
             rates.processed += 1
             rates.step_ms.append(res.step_ms)
@@ -193,9 +203,11 @@ class _Connection:
         """Runs on a worker thread: decode, perceive, decide."""
         t0 = time.perf_counter()
         try:
-            tel = decode_telemetry(message, self.server.options.max_bytes)
+            tel = decode_telemetry(message, self.server.options.max_bytes, self.server.options.max_pixels)
         except ProtocolError as e:
             return _Result(SAFE_COMMAND, (time.perf_counter() - t0) * 1e3, str(e))
+        if self.closed:  # nobody is left to answer: spare the CPU the step
+            return _Result(SAFE_COMMAND, 0.0, cancelled=True)
         perception, cmd = self.driver.step(tel)
         answer = encode_command(cmd.steering, cmd.throttle)
         return _Result(answer, (time.perf_counter() - t0) * 1e3, "", perception, cmd, tel)
@@ -221,6 +233,24 @@ class _Connection:
             s.disk.submit(s.shower.write, frame_id, res.telemetry.speed_mps, res.perception, sent)
 
 
+# close codes the server sends when a client breaks the protocol (websockets closes the connection)
+CLOSE_REASONS = {1002: "protocol error", 1007: "a text frame that is not valid UTF-8", 1009: "message too big"}
+
+
+def why_closed(e: ConnectionClosed, size_limit: int) -> str:
+    """How a connection ended, for its log line: the code we closed it with when the client
+    broke the protocol, else the client's close frame, or that there was none."""
+    sent, rcvd = e.sent, e.rcvd
+    if sent is not None and sent.code == 1009:
+        return f"message over {size_limit} bytes, closed with 1009"
+    if sent is not None and sent.code not in (1000, 1001):
+        what = CLOSE_REASONS.get(sent.code, "error")
+        return f"{what}{f': {sent.reason}' if sent.reason else ''}, closed with {sent.code}"
+    if rcvd is not None:
+        return f"code {rcvd.code} {rcvd.reason!r}"
+    return "no close frame"
+
+
 def probe_driver(make_driver: Callable[[], Any]) -> None:
     """Build a driver and drive one grey frame, so what would fail every connection (an unknown
     lane method, a missing model file: models load on the first frame) fails before listening."""
@@ -230,7 +260,7 @@ def probe_driver(make_driver: Callable[[], Any]) -> None:
     try:
         driver.step(Telemetry(wheel_deg=0.0, pedal=0.0, speed_mps=0.0, image_bgr=np.full((240, 320, 3), 110, np.uint8),
                               time=0.0))
-    except (ModelError, ValueError, OSError):
+    except (ModelError, ValueError, OSError, SignStageError):
         raise
     except Exception as e:  # a driver bug on a blank frame: worth a line, not a refusal to serve
         log.warning("the driver failed on a blank test frame: %s: %s", type(e).__name__, e)

@@ -1,0 +1,460 @@
+"""Image bytes checked before OpenCV decodes them: the size from the header, a pixel limit, and
+the integrity of JPEG and PNG data.
+
+OpenCV decodes whatever it is given: a 3 MB JPEG of 12000x12000 px becomes a 430 MB array (and
+gigabytes while decoding), and a JPEG whose entropy-coded data is corrupt decodes to a smeared
+picture with only a libjpeg warning on stderr. `decode` reads the size from the header without
+decoding, refuses images over `max_pixels`, checks the data (JPEG: markers and every Huffman code
+of a sequential scan, as the decoder would read them; PNG: every chunk's CRC) and only then decodes.
+Problems raise `ImageCheckError` with one line saying what is wrong (callers add which input).
+"""
+from __future__ import annotations
+
+import struct
+import zlib
+from functools import lru_cache
+
+import cv2
+import numpy as np
+
+DEFAULT_MAX_PIXELS = 4096 * 4096
+
+
+class ImageCheckError(ValueError):
+    """Image bytes that must not be decoded: str(e) is one line, without the input's name."""
+
+
+# ------------------------------------------------------------------------------------ formats
+def image_format(data: bytes) -> str | None:
+    """'jpeg', 'png', 'bmp', 'tiff', 'webp' from the leading bytes, or None."""
+    if data[:3] == b"\xff\xd8\xff":
+        return "jpeg"
+    if data[:8] == b"\x89PNG\r\n\x1a\n":
+        return "png"
+    if data[:2] == b"BM":
+        return "bmp"
+    if data[:4] in (b"II*\x00", b"MM\x00*"):
+        return "tiff"
+    if data[:4] == b"RIFF" and data[8:12] == b"WEBP":
+        return "webp"
+    return None
+
+
+def header_size(data: bytes) -> tuple[int, int]:
+    """(width, height) read from the header, without decoding; ImageCheckError if unreadable."""
+    kind = image_format(data)
+    if kind is None:
+        raise ImageCheckError(f"not an image this reader knows (bytes start {data[:8]!r}; expected a JPEG, PNG, "
+                              "BMP, TIFF or WebP)")
+    try:
+        if kind == "jpeg":
+            return _jpeg_frame(data).size
+        return {"png": _png_size, "bmp": _bmp_size, "tiff": _tiff_size, "webp": _webp_size}[kind](data)
+    except (struct.error, IndexError):
+        raise ImageCheckError(f"truncated {kind.upper()} header ({len(data)} bytes)") from None
+
+
+def check_pixels(width: int, height: int, max_pixels: int = DEFAULT_MAX_PIXELS) -> None:
+    if width <= 0 or height <= 0:
+        raise ImageCheckError(f"header says the image is {width}x{height} px")
+    if width * height > max_pixels:
+        raise ImageCheckError(f"image is {width}x{height} px, over the limit of {max_pixels} pixels "
+                              f"({_limit_text(max_pixels)})")
+
+
+def _limit_text(max_pixels: int) -> str:
+    side = int(round(max_pixels ** 0.5))
+    return f"{side}x{side}" if side * side == max_pixels else f"{max_pixels / 1e6:.1f} MP"
+
+
+def check_integrity(data: bytes) -> None:
+    """JPEG: markers, and every Huffman code of sequential scans; PNG: chunk CRCs and IEND.
+    Other formats pass unchecked. ImageCheckError names the first problem."""
+    kind = image_format(data)
+    if kind == "jpeg":
+        check_jpeg(data)
+    elif kind == "png":
+        check_png(data)
+
+
+def decode(data: bytes, max_pixels: int = DEFAULT_MAX_PIXELS, flags: int = cv2.IMREAD_COLOR) -> np.ndarray:
+    """Checked image bytes -> the array cv2.imdecode(data, flags) gives; ImageCheckError if the
+    header is unreadable, the image has more than `max_pixels` pixels, the data is corrupt or
+    OpenCV cannot decode it."""
+    check_pixels(*header_size(data), max_pixels)
+    check_integrity(data)
+    try:
+        img = cv2.imdecode(np.frombuffer(data, np.uint8), flags)
+    except cv2.error:  # some damaged headers make OpenCV raise instead of returning None
+        img = None
+    if img is None:
+        raise ImageCheckError(f"not an image OpenCV can decode ({len(data)} bytes, corrupt or unsupported)")
+    return img
+
+
+# ------------------------------------------------------------------------------------ PNG
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def _png_size(data: bytes) -> tuple[int, int]:
+    if data[12:16] != b"IHDR":
+        raise ImageCheckError("PNG does not start with an IHDR chunk")
+    return struct.unpack(">II", data[16:24])
+
+
+def check_png(data: bytes) -> None:
+    """Walk the chunks: each CRC must match, IHDR first, IEND last."""
+    try:
+        _check_png(data)
+    except struct.error:
+        raise ImageCheckError("truncated PNG (a chunk header runs past the end)") from None
+
+
+def _check_png(data: bytes) -> None:
+    i, first = len(PNG_SIGNATURE), True
+    while True:
+        if i + 12 > len(data):
+            raise ImageCheckError(f"truncated PNG (no IEND chunk in {len(data)} bytes)")
+        length, kind = struct.unpack(">I4s", data[i:i + 8])
+        end = i + 12 + length
+        if end > len(data):
+            raise ImageCheckError(f"truncated PNG ({kind!r} chunk of {length} bytes runs past the end)")
+        crc = struct.unpack(">I", data[end - 4:end])[0]
+        if zlib.crc32(data[i + 4:end - 4]) != crc:
+            raise ImageCheckError(f"corrupt PNG data (CRC mismatch in the {kind!r} chunk at byte {i})")
+        if first and kind != b"IHDR":
+            raise ImageCheckError("PNG does not start with an IHDR chunk")
+        first = False
+        if kind == b"IEND":
+            return
+        i = end
+
+
+# ------------------------------------------------------------------------------------ BMP, TIFF, WebP
+def _bmp_size(data: bytes) -> tuple[int, int]:
+    header = struct.unpack("<I", data[14:18])[0]
+    if header == 12:  # OS/2 BITMAPCOREHEADER
+        w, h = struct.unpack("<HH", data[18:22])
+    else:
+        w, h = struct.unpack("<ii", data[18:26])
+    return w, abs(h)  # a negative height is a top-down bitmap
+
+
+def _tiff_size(data: bytes) -> tuple[int, int]:
+    end = "<" if data[:2] == b"II" else ">"
+    ifd = struct.unpack(end + "I", data[4:8])[0]
+    count = struct.unpack(end + "H", data[ifd:ifd + 2])[0]
+    found = {}
+    for k in range(count):
+        tag, typ = struct.unpack(end + "HH", data[ifd + 2 + 12 * k:ifd + 6 + 12 * k])
+        if tag in (256, 257):  # ImageWidth, ImageLength: SHORT or LONG
+            raw = data[ifd + 10 + 12 * k:ifd + 14 + 12 * k]
+            found[tag] = struct.unpack(end + ("H" if typ == 3 else "I"), raw[:2] if typ == 3 else raw)[0]
+    if len(found) < 2:
+        raise ImageCheckError("TIFF header has no image width or length")
+    return found[256], found[257]
+
+
+def _webp_size(data: bytes) -> tuple[int, int]:
+    chunk = data[12:16]
+    if chunk == b"VP8 ":
+        if data[23:26] != b"\x9d\x01\x2a":
+            raise ImageCheckError("WebP VP8 frame has no start code")
+        w, h = struct.unpack("<HH", data[26:30])
+        return w & 0x3FFF, h & 0x3FFF
+    if chunk == b"VP8L":
+        bits = struct.unpack("<I", data[21:25])[0]
+        return (bits & 0x3FFF) + 1, ((bits >> 14) & 0x3FFF) + 1
+    if chunk == b"VP8X":
+        return int.from_bytes(data[24:27], "little") + 1, int.from_bytes(data[27:30], "little") + 1
+    raise ImageCheckError(f"WebP has an unknown first chunk {chunk!r}")
+
+
+# ------------------------------------------------------------------------------------ JPEG
+SOF_MARKERS = {0xC0, 0xC1, 0xC2, 0xC3, 0xC5, 0xC6, 0xC7, 0xC9, 0xCA, 0xCB, 0xCD, 0xCE, 0xCF}
+SEQUENTIAL_HUFFMAN = {0xC0, 0xC1}  # baseline and extended sequential: their scans are checked bit by bit
+_BAD = 1 << 23  # table entry for a bit pattern that is no code: jumps past any data, caught as an overrun
+
+
+class _Frame:
+    def __init__(self, marker: int, height: int, width: int, comps: list[tuple[int, int, int]]):
+        self.marker, self.height, self.width = marker, height, width
+        self.comps = {c: (h, v) for c, h, v in comps}
+        self.hmax = max(h for _, h, _ in comps)
+        self.vmax = max(v for _, _, v in comps)
+
+    @property
+    def size(self) -> tuple[int, int]:
+        return self.width, self.height
+
+
+def _next_segment(data: bytes, i: int) -> tuple[int, int, int]:
+    """The marker at byte i (after fill bytes) and its payload (start, end); EOI has none."""
+    n = len(data)
+    if i < n and data[i] != 0xFF:
+        raise ImageCheckError(f"corrupt JPEG data (byte {i} should start a marker)")
+    while i < n and data[i] == 0xFF:  # fill bytes before a marker
+        i += 1
+    if i >= n:
+        raise ImageCheckError(f"truncated JPEG (no end-of-image marker in {n} bytes)")
+    marker = data[i]
+    i += 1
+    if marker == 0xD9:
+        return marker, i, i
+    if marker < 0xC0:
+        raise ImageCheckError(f"not a decodable JPEG (byte {i - 1} is 0x{marker:02x}, no marker)")
+    if 0xD0 <= marker <= 0xD8:
+        raise ImageCheckError(f"corrupt JPEG data (marker 0x{marker:02x} outside a scan at byte {i - 2})")
+    if i + 2 > n:
+        raise ImageCheckError(f"truncated JPEG (no end-of-image marker in {n} bytes)")
+    length = (data[i] << 8) | data[i + 1]
+    if length < 2 or i + length > n:
+        raise ImageCheckError(f"truncated JPEG (segment 0x{marker:02x} at byte {i - 2} runs past the end)")
+    return marker, i + 2, i + length
+
+
+def _parse_sof(marker: int, seg: bytes) -> _Frame:
+    nf = seg[5] if len(seg) >= 6 else 0
+    if nf == 0 or len(seg) < 6 + 3 * nf:
+        raise ImageCheckError("corrupt JPEG frame header (SOF)")
+    height, width = struct.unpack(">HH", seg[1:5])
+    comps = [(seg[6 + 3 * k], seg[7 + 3 * k] >> 4, seg[7 + 3 * k] & 15) for k in range(nf)]
+    if any(not (1 <= h <= 4 and 1 <= v <= 4) for _, h, v in comps):
+        raise ImageCheckError("corrupt JPEG frame header (SOF): a sampling factor outside 1..4")
+    if height == 0:
+        raise ImageCheckError("JPEG gives its height in a DNL marker, which is not supported")
+    return _Frame(marker, height, width, comps)
+
+
+def _jpeg_frame(data: bytes) -> _Frame:
+    """The frame header (size, components), read without touching the entropy-coded data."""
+    i = 2
+    while True:
+        marker, a, i = _next_segment(data, i)
+        if marker in SOF_MARKERS:
+            return _parse_sof(marker, data[a:i])
+        if marker in (0xDA, 0xD9):
+            break
+    raise ImageCheckError("JPEG has no frame header (SOF) before its first scan")
+
+
+@lru_cache(maxsize=16)  # cameras use the same few tables on every frame
+def _huffman_table(spec: bytes, ac: bool) -> np.ndarray:
+    """DHT table (16 counts + symbols) -> int32 lookup by the next 16 bits of the stream: the bits
+    the symbol and its extra bits take, plus (AC) the coefficient step in bits 24+ (0: end of block)."""
+    counts, symbols = spec[:16], spec[16:]
+    table = np.full(1 << 16, _BAD, np.int32)
+    code, k = 0, 0
+    for length in range(1, 17):
+        for _ in range(counts[length - 1]):
+            sym = symbols[k]
+            k += 1
+            extra = sym & 15 if ac else sym
+            if ac:
+                run = sym >> 4
+                step = 0 if extra == 0 and run != 15 else (16 if extra == 0 else run + 1)
+            else:
+                step = 0
+            if code >= 1 << length or (not ac and sym > 16):
+                raise ImageCheckError("corrupt JPEG Huffman table (DHT): more codes than bits, or a bad DC size")
+            lo = code << (16 - length)
+            table[lo:lo + (1 << (16 - length))] = length + extra + (step << 24)
+            code += 1
+        code <<= 1
+    return table
+
+
+class _Scan:
+    def __init__(self, frame: _Frame, seg: bytes, dc: dict, ac: dict):
+        ns = seg[0]
+        if ns == 0 or len(seg) != 4 + 2 * ns:
+            raise ImageCheckError("corrupt JPEG scan header (SOS)")
+        sel = [(seg[1 + 2 * k], seg[2 + 2 * k] >> 4, seg[2 + 2 * k] & 15) for k in range(ns)]
+        ss, se, a = seg[1 + 2 * ns], seg[2 + 2 * ns], seg[3 + 2 * ns]
+        self.sequential = (ss, se, a) == (0, 63, 0)
+        blocks = []  # (dc table, ac table) of each block of one MCU, in order
+        for c, td, ta in sel:
+            if c not in frame.comps:
+                raise ImageCheckError(f"JPEG scan names component {c}, which the frame does not have")
+            if (td not in dc or ta not in ac) and self.sequential:
+                raise ImageCheckError(f"JPEG scan uses a Huffman table that is not defined (DC {td}, AC {ta})")
+            h, v = frame.comps[c] if ns > 1 else (1, 1)
+            blocks += [(dc.get(td), ac.get(ta))] * (h * v)
+        self.blocks = blocks
+        if ns > 1:
+            self.mcus = -(-frame.width // (8 * frame.hmax)) * -(-frame.height // (8 * frame.vmax))
+        else:
+            h, v = frame.comps[sel[0][0]]
+            cw = -(-frame.width * h // frame.hmax)
+            ch = -(-frame.height * v // frame.vmax)
+            self.mcus = -(-cw // 8) * -(-ch // 8)
+
+
+def _scan_end(data: bytes, i: int) -> tuple[int, list[tuple[int, int]]]:
+    """Where the entropy-coded data starting at i ends (the next marker), and its restart
+    markers as (byte offset, number 0-7)."""
+    rst = []
+    j = data.find(b"\xff", i)
+    while True:
+        if j < 0 or j + 1 >= len(data):
+            raise ImageCheckError(f"truncated JPEG (scan data runs to the end of the file, {len(data)} bytes)")
+        nxt = data[j + 1]
+        if nxt == 0x00:
+            j = data.find(b"\xff", j + 2)
+        elif 0xD0 <= nxt <= 0xD7:
+            rst.append((j, nxt - 0xD0))
+            j = data.find(b"\xff", j + 2)
+        else:
+            return j, rst
+
+
+def _bit_windows(chunk: bytes) -> np.ndarray:
+    """The 16 bits starting at every bit position of (unstuffed) entropy-coded bytes, as int64
+    indices; the last positions see 1-bits beyond the end (the padding an encoder uses)."""
+    b = np.frombuffer(chunk + b"\xff\xff", np.uint8).astype(np.int64)
+    w = (b[:-2] << 16) | (b[1:-1] << 8) | b[2:]
+    shifts = np.arange(8, 0, -1, dtype=np.int64)
+    return ((w[:, None] >> shifts) & 0xFFFF).reshape(-1)
+
+
+WINDOW_BYTES = 1 << 16  # the codes are looked up for this many bytes at a time (memory stays small)
+MCU_MAX_BYTES = 4096  # more than the codes of one MCU can take (10 blocks of at most 64 codes of 31 bits)
+
+
+class _Bits:
+    """Per-position lookups of a scan's Huffman tables over a window of its bytes."""
+
+    def __init__(self, chunk: bytes, tables: list[np.ndarray]):
+        self.chunk, self.tables = chunk, tables
+        self.nbits = 8 * len(chunk)
+
+    def window(self, pos: int) -> tuple[int, int, list[memoryview]]:
+        """(bit offset of the window, bits it covers before a reload, lookups per table)."""
+        first = pos >> 3
+        sub = self.chunk[first:first + WINDOW_BYTES + MCU_MAX_BYTES]
+        bits = _bit_windows(sub)
+        limit = 8 * WINDOW_BYTES if first + len(sub) < len(self.chunk) else 1 << 62
+        return 8 * first, limit, [memoryview(t[bits]) for t in self.tables]
+
+
+def _check_codes(chunk: bytes, starts: list[int], scan: _Scan, restart: int, where: int) -> None:
+    """Decode the Huffman codes of a scan's MCUs from its bytes (stuffing and restart markers
+    removed; restart interval k starts at byte starts[k]) and require that every interval uses
+    its bytes exactly, as libjpeg does without a warning."""
+    tables = list({id(t): t for pair in scan.blocks for t in pair}.values())
+    index = {id(t): k for k, t in enumerate(tables)}
+    order = [(index[id(dc)], index[id(ac)]) for dc, ac in scan.blocks]
+    bits = _Bits(chunk, tables)
+    offset, limit, looks = bits.window(0)
+    blocks = [(looks[d], looks[a]) for d, a in order]
+    ends = [8 * b for b in starts[1:]] + [bits.nbits]
+    pos = 0  # bit position relative to the window
+    for k, end in enumerate(ends):
+        n = min(restart, scan.mcus - k * restart) if restart else scan.mcus
+        if k:  # a restart interval starts on its own byte
+            pos = 8 * starts[k] - offset
+        try:
+            for _ in range(n):
+                if pos > limit:
+                    if pos >= _BAD >> 1:  # a bad code ended the last MCU
+                        break
+                    absolute = offset + pos
+                    offset, limit, looks = bits.window(absolute)
+                    pos = absolute - offset
+                    blocks = [(looks[d], looks[a]) for d, a in order]
+                for dc, ac in blocks:
+                    pos += dc[pos]
+                    c = 1
+                    while c < 64:
+                        e = ac[pos]
+                        pos += e & 0xFFFFFF
+                        step = e >> 24
+                        if not step:
+                            break
+                        c += step
+                    if c > 64:
+                        raise ImageCheckError(f"corrupt JPEG data (a block's coefficients run past 64 in the scan "
+                                              f"at byte {where})")
+        except IndexError:  # past the data, or (a huge jump) a bad code
+            pos = max(pos, bits.nbits + 8 - offset)
+        if pos >= _BAD >> 1:
+            raise ImageCheckError(f"corrupt JPEG data (bad Huffman code in the scan at byte {where})")
+        used = offset + pos
+        if used > end:
+            raise ImageCheckError(f"corrupt JPEG data (the scan at byte {where} needs more data than it holds: a "
+                                  "corrupt or truncated entropy-coded segment)")
+        if end - used >= 8:
+            raise ImageCheckError(f"corrupt JPEG data ({(end - used) // 8} extraneous bytes in the scan at byte "
+                                  f"{where})")
+
+
+def check_jpeg(data: bytes) -> None:
+    """Markers in order, a frame header before the first scan, an end-of-image marker; for
+    sequential Huffman JPEGs (what cameras and simulators send) every code of every scan, with
+    restart markers in sequence. ImageCheckError names the first problem."""
+    try:
+        _check_jpeg(data)
+    except (struct.error, IndexError):  # a segment shorter than the fields it must hold
+        raise ImageCheckError("corrupt JPEG data (a header segment is shorter than its fields)") from None
+
+
+def _check_jpeg(data: bytes) -> None:
+    frame, dc, ac, restart, scans = None, {}, {}, 0, 0
+    i = 2
+    while True:
+        marker, a, b = _next_segment(data, i)
+        seg, i = data[a:b], b
+        if marker in SOF_MARKERS:
+            frame = _parse_sof(marker, seg)
+        elif marker == 0xC4:
+            _parse_dht(seg, dc, ac)
+        elif marker == 0xDD:
+            if len(seg) != 2:
+                raise ImageCheckError("corrupt JPEG restart interval (DRI)")
+            restart = (seg[0] << 8) | seg[1]
+        elif marker == 0xDA:
+            if frame is None:
+                raise ImageCheckError("JPEG has no frame header (SOF) before its first scan")
+            end, rst = _scan_end(data, b)
+            if frame.marker in SEQUENTIAL_HUFFMAN:
+                _check_scan(data, b, end, rst, _Scan(frame, seg, dc, ac), restart)
+            scans += 1
+            i = end
+        elif marker == 0xD9:
+            if scans == 0:
+                raise ImageCheckError("JPEG ends before its first scan (no image data)")
+            return
+
+
+def _parse_dht(seg: bytes, dc: dict, ac: dict) -> None:
+    i = 0
+    while i < len(seg):
+        if i + 17 > len(seg):
+            raise ImageCheckError("corrupt JPEG Huffman table (DHT)")
+        tc, th = seg[i] >> 4, seg[i] & 15
+        n = sum(seg[i + 1:i + 17])
+        spec = seg[i + 1:i + 17 + n]
+        if tc > 1 or th > 3 or len(spec) != 16 + n or n > 256:
+            raise ImageCheckError("corrupt JPEG Huffman table (DHT)")
+        (ac if tc else dc)[th] = _huffman_table(bytes(spec), bool(tc))
+        i += 17 + n
+
+
+def _check_scan(data: bytes, start: int, end: int, rst: list[tuple[int, int]], scan: _Scan, restart: int) -> None:
+    if not scan.sequential:
+        raise ImageCheckError("corrupt JPEG scan header (a sequential JPEG with a progressive scan)")
+    intervals = -(-scan.mcus // restart) if restart else 1
+    if len(rst) != intervals - 1:
+        raise ImageCheckError(f"corrupt JPEG data (the scan at byte {start} has {len(rst)} restart markers, "
+                              f"expected {intervals - 1})")
+    bounds = [start] + [j for j, _ in rst] + [end]
+    parts, starts, size = [], [], 0
+    for k in range(intervals):
+        if k and rst[k - 1][1] != (k - 1) % 8:
+            raise ImageCheckError(f"corrupt JPEG data (restart marker {rst[k - 1][1]} out of sequence at byte "
+                                  f"{rst[k - 1][0]})")
+        part = data[bounds[k] + (2 if k else 0):bounds[k + 1]].replace(b"\xff\x00", b"\xff")
+        parts.append(part)
+        starts.append(size)
+        size += len(part)
+    _check_codes(b"".join(parts), starts, scan, restart, start)
