@@ -1,16 +1,19 @@
-"""Closed-loop driving score over many tracks: the bundled maps and N seeded procedural tracks,
-in lockstep (deterministic) and/or real time at 30 Hz through a drive server started in the same
-process (as `signlane sim --with-driver`), with the default config (shipped models).
+"""Closed-loop driving score over many tracks, per road style: the bundled maps, VIA's own
+default maps (../shared/via/maps, when present) and N seeded procedural tracks, in lockstep
+(deterministic) and/or real time at 30 Hz through a drive server started in the same process
+(as `signlane sim --with-driver`), with the default config (shipped models).
 
-It prints one row per (track, mode), a totals row per mode, the acceptance check
-(0 off-road events, 100% stop compliance, >= 95% turn compliance, mean cross-track error <= 0.10
-lane widths) and, when both modes ran, the real-time minus lockstep difference per measure.
+It prints one table per style: a row per (track, mode), a totals row per mode, the acceptance
+check (0 off-road events, 100% stop compliance, >= 95% turn compliance, mean cross-track error
+<= 0.10 of the lane width: VIA's whole 4 m carriageway, or a painted lane) and, when both modes
+ran, the real-time minus lockstep difference per measure.
 
-    python benchmarks/closed_loop.py [--seeds 20] [--modes lockstep realtime] [--jobs 1] [--out DIR]
-                                     [--random-looks]
+    python benchmarks/closed_loop.py [--style via painted] [--seeds 20] [--first-seed 0]
+                                     [--modes lockstep realtime] [--jobs 1] [--out DIR] [--random-looks]
 
-Real-time rows depend on the machine's load: run them with --jobs 1 on a quiet machine.
-Lockstep rows are deterministic, so --jobs 2 only changes the wall time.
+Tune on other seeds (e.g. --first-seed 100) than the acceptance's 0-19. Real-time rows depend on
+the machine's load: run them with --jobs 1 on a quiet machine. Lockstep rows are deterministic,
+so --jobs 2 only changes the wall time.
 """
 from __future__ import annotations
 
@@ -20,21 +23,29 @@ import multiprocessing as mp
 import time
 from pathlib import Path
 
-BUNDLED = ["loop_demo", "town_demo"]
+BUNDLED = ["via_town", "loop_demo"]
+SHARED_MAPS = Path(__file__).resolve().parents[2] / "shared" / "via" / "maps"
 TARGET = {"offroad": 0, "stops": 1.0, "turns": 0.95, "cte_mean": 0.10}
 
 
-def _track(name: str):
-    from signlane.demo import bundled_map
-    from signlane.world.procedural import generate_map
-    from signlane.world.track import Track
+def via_maps() -> list[str]:
+    """VIA's own default maps beside the project, when ../shared is there."""
+    return [str(p) for p in sorted(SHARED_MAPS.glob("*.json"))] if SHARED_MAPS.is_dir() else []
+
+
+def _track(name: str, style: str):
+    from signlane.world.maps import load_track
     if name.startswith("seed"):
-        return Track.from_via(generate_map(int(name[4:])))
-    return bundled_map(name)
+        return load_track("random", style, int(name[4:]))
+    return load_track(name, style)
 
 
-def _run(job: tuple[str, str, str | None, bool]) -> dict:
-    name, mode, out, random_looks = job
+def _label(name: str) -> str:
+    return Path(name).stem if name.endswith(".json") else name
+
+
+def _run(job: tuple[str, str, str | None, bool, str]) -> dict:
+    name, mode, out, random_looks, style = job
     import cv2
     cv2.setNumThreads(1)
     from signlane.config import Config
@@ -44,10 +55,10 @@ def _run(job: tuple[str, str, str | None, bool]) -> dict:
     t0 = time.perf_counter()
     looks = SimConfig(random_looks=True, looks_seed=int(name[4:]) if name.startswith("seed") else 0) \
         if random_looks else SimConfig()
-    rep = run_session(_track(name), looks, Path(out) / f"{name}-{mode}" if out else None, Config(),
-                      lockstep=lock, with_driver=not lock, show_progress=False)
+    rep = run_session(_track(name, style), looks, Path(out) / f"{style}-{_label(name)}-{mode}" if out else None,
+                      Config(), lockstep=lock, with_driver=not lock, show_progress=False)
     rep["wall_s"] = round(time.perf_counter() - t0, 1)
-    rep["track"], rep["run"] = name, mode
+    rep["track"], rep["run"], rep["style"] = _label(name), mode, style
     return rep
 
 
@@ -80,40 +91,49 @@ def totals(rows: list[dict]) -> dict:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--seeds", type=int, default=20, help="procedural tracks seed 0..N-1 (default 20)")
+    ap.add_argument("--style", nargs="+", choices=["via", "painted"], default=["via", "painted"],
+                    help="road styles, one table each (default both)")
+    ap.add_argument("--seeds", type=int, default=20, help="procedural tracks seed first..first+N-1 (default 20)")
     ap.add_argument("--first-seed", type=int, default=0)
-    ap.add_argument("--no-bundled", action="store_true", help="skip the bundled maps")
+    ap.add_argument("--no-bundled", action="store_true", help="skip the bundled and VIA's own maps")
+    ap.add_argument("--tracks", nargs="+", help="only these (bundled names, map files or seedN)")
     ap.add_argument("--modes", nargs="+", choices=["lockstep", "realtime"], default=["lockstep"])
     ap.add_argument("--jobs", type=int, default=1, help="tracks driven at once (real time: keep 1)")
     ap.add_argument("--random-looks", action="store_true", help="randomise road and scenery colours (seeded)")
     ap.add_argument("--out", type=Path, help="per-run report.json and path.png, plus summary.json")
     a = ap.parse_args()
-    names = ([] if a.no_bundled else BUNDLED) + [f"seed{s}" for s in range(a.first_seed, a.first_seed + a.seeds)]
-    jobs = [(n, m, str(a.out) if a.out else None, a.random_looks) for m in a.modes for n in names]
-    print("| track | mode | laps | off-road | cte mean / max | stops | turns | sim s | fps | latency ms median / p99 |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
-    rows = []
-    with mp.get_context("spawn").Pool(a.jobs, maxtasksperchild=1) as pool:
-        for r in pool.imap(_run, jobs):
-            rows.append(r)
-            print(_row(r), flush=True)
     summary = {}
-    for m in a.modes:
-        t = summary[m] = totals([r for r in rows if r["run"] == m])
-        print(f"\n{m}: {t['tracks']} tracks, {t['laps']} laps, off-road {t['offroad']}, "
-              f"cte mean {t['cte_mean']:.3f} (max {t['cte_max']:.3f}), stops {_ratio(*t['stops'])}, "
-              f"turns {_ratio(*t['turns'])}, {t['time_s']:.0f} s driven -> {'PASS' if t['pass'] else 'FAIL'}"
-              + (f"; no lap on {t['incomplete']}" if t["incomplete"] else ""))
-    if {"lockstep", "realtime"} <= set(a.modes):
-        by = {(r["track"], r["run"]): r for r in rows}
-        dc = [abs(by[n, "realtime"]["cte_mean"] - by[n, "lockstep"]["cte_mean"]) for n in names]
-        dt = [abs(by[n, "realtime"]["time_s"] - by[n, "lockstep"]["time_s"]) / by[n, "lockstep"]["time_s"]
-              for n in names]
-        print(f"real time vs lockstep per track: |d cte mean| max {max(dc):.3f} lane widths, "
-              f"|d lap time| max {100 * max(dt):.1f}%")
+    all_rows = []
+    for style in a.style:
+        maps = [] if a.no_bundled else BUNDLED + (via_maps() if style == "via" else [])
+        names = a.tracks or maps + [f"seed{s}" for s in range(a.first_seed, a.first_seed + a.seeds)]
+        jobs = [(n, m, str(a.out) if a.out else None, a.random_looks, style) for m in a.modes for n in names]
+        print(f"\n### style {style}\n")
+        print("| track | mode | laps | off-road | cte mean / max | stops | turns | sim s | fps | latency ms median / p99 |")
+        print("|---|---|---|---|---|---|---|---|---|---|")
+        rows = []
+        with mp.get_context("spawn").Pool(a.jobs, maxtasksperchild=1) as pool:
+            for r in pool.imap(_run, jobs):
+                rows.append(r)
+                print(_row(r), flush=True)
+        all_rows += rows
+        for m in a.modes:
+            t = summary[f"{style}/{m}"] = totals([r for r in rows if r["run"] == m])
+            print(f"\n{style} {m}: {t['tracks']} tracks, {t['laps']} laps, off-road {t['offroad']}, "
+                  f"cte mean {t['cte_mean']:.3f} (max {t['cte_max']:.3f}), stops {_ratio(*t['stops'])}, "
+                  f"turns {_ratio(*t['turns'])}, {t['time_s']:.0f} s driven -> {'PASS' if t['pass'] else 'FAIL'}"
+                  + (f"; no lap on {t['incomplete']}" if t["incomplete"] else ""))
+        if {"lockstep", "realtime"} <= set(a.modes):
+            by = {(r["track"], r["run"]): r for r in rows}
+            labels = [_label(n) for n in names]
+            dc = [abs(by[n, "realtime"]["cte_mean"] - by[n, "lockstep"]["cte_mean"]) for n in labels]
+            dt = [abs(by[n, "realtime"]["time_s"] - by[n, "lockstep"]["time_s"]) / by[n, "lockstep"]["time_s"]
+                  for n in labels]
+            print(f"{style}: real time vs lockstep per track: |d cte mean| max {max(dc):.3f} lane widths, "
+                  f"|d lap time| max {100 * max(dt):.1f}%")
     if a.out:
         a.out.mkdir(parents=True, exist_ok=True)
-        (a.out / "summary.json").write_text(json.dumps({"rows": rows, "totals": summary}, indent=1))
+        (a.out / "summary.json").write_text(json.dumps({"rows": all_rows, "totals": summary}, indent=1))
 
 
 if __name__ == "__main__":

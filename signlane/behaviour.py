@@ -52,6 +52,8 @@ class BehaviourParams:
     lookahead_painted: tuple[float, float] = (5.0, 0.5)
     commit_near_m: float = 12.0  # plan a junction once its side road starts this close
     instruction_range_m: float = 40.0  # a turn sign applies to a junction within this distance after it
+    sign_slack_m: float = 2.0  # a sign placed this much past a junction's far side (misjudged distance) still counts
+    dead_memory_m: float = 6.0  # dead-end verdicts are forgotten this far after the last opening seen
 
 
 @dataclass
@@ -70,6 +72,8 @@ class Behaviour:
     def reset(self) -> None:
         self.state = "cruise"
         self.two_lane = True
+        self.decisions: list[dict] = []  # each junction planned: what was seen, what sign, which turn
+        self._dead: dict[str, bool] = {}  # dead-end verdicts of the openings ahead (see _remember_dead_ends)
         self.signs: list[SignMemory] = []
         self.path: np.ndarray | None = None  # junction path, odometry frame
         self.turn = ""
@@ -106,8 +110,9 @@ class Behaviour:
         right lane (False: a kerbed carriageway driven in its middle)."""
         self.two_lane = two_lane
         self.signs = [m for m in self.signs if self._ahead(pose, m) > -self.p.instruction_range_m]
+        self._remember_dead_ends(junction, odo_m)
         if self.path is None and junction is not None and odo_m > self.cooldown_until_m:
-            self._plan_junction(pose, lane, junction)
+            self._plan_junction(pose, lane, junction, odo_m)
         if self.path is not None:
             steering, throttle, state = self._junction_step(pose, odo_m, speed)
             stop = self._stop(t, pose, speed)  # a stop sign before the junction still holds
@@ -163,7 +168,7 @@ class Behaviour:
         sides = {name: o for name, o in (("left", j.left), ("right", j.right)) if o is not None and o.closed}
         if not sides:
             return None
-        exits = {name for name, o in sides.items() if not o.dead}
+        exits = {name for name in sides if not self._dead.get(name)}
         if j.straight:
             exits.add("straight")
         if len(exits) >= 2 or (len(sides) == 2 and exits):
@@ -179,7 +184,30 @@ class Behaviour:
                 return turn
         return sorted(exits)[0]
 
-    def _plan_junction(self, pose: OdoPose, lane: LaneEstimate, j: JunctionView) -> bool:
+    def _instruction(self, pose: OdoPose, far_m: float) -> SignMemory | None:
+        """The turn sign for a junction whose side road ends far_m ahead: signs stand before the
+        junction they are for, so the one nearest before its far side (a sign beyond it is for
+        the next junction, and must not be used up here)."""
+        live = [m for m in self.signs if not m.done and m.label in TURN_SIGNS
+                and -self.p.instruction_range_m < self._ahead(pose, m) < far_m + self.p.sign_slack_m]
+        return max(live, key=lambda m: self._ahead(pose, m), default=None)
+
+    def _remember_dead_ends(self, j: JunctionView | None, odo_m: float) -> None:
+        """Dead-end verdicts of the openings ahead, kept from the frames that could tell (far
+        enough to see past a side road's end) to the frame that plans the junction (too close
+        to see it), and forgotten once no opening has been seen for a while."""
+        seen = False
+        for name, o in (("left", None if j is None else j.left), ("right", None if j is None else j.right)):
+            if o is not None and o.closed:
+                seen = True
+                if o.dead is not None:
+                    self._dead[name] = o.dead
+        if seen:
+            self._dead_seen_m = odo_m
+        elif odo_m - getattr(self, "_dead_seen_m", -1e9) > self.p.dead_memory_m:
+            self._dead = {}
+
+    def _plan_junction(self, pose: OdoPose, lane: LaneEstimate, j: JunctionView, odo_m: float = 0.0) -> bool:
         exits = self._exits(j)
         if exits is None:
             return False
@@ -188,10 +216,19 @@ class Behaviour:
         if near > self.p.commit_near_m:
             return False
         y_c = float(np.mean([o.centre_m for o in side]))
-        sign = self._pending(pose, TURN_SIGNS, behind_m=self.p.instruction_range_m)
+        sign = self._instruction(pose, max(o.far_m for o in side))
         self.turn = self.choose(exits, sign.label if sign else None)
         if sign is not None:
             sign.done = True
+        self.decisions.append({"odo_m": round(odo_m, 1), "exits": sorted(exits), "sign": sign.label if sign else None,
+                               "turn": self.turn, "near_m": round(near, 1),
+                               "dead": sorted(n for n, d in self._dead.items() if d)})
+        self._dead = {}
+        if self.turn == "straight" and not getattr(self, "two_lane", True):
+            # a kerbed carriageway's edges carry on across a junction (the far edge stands in
+            # for the open one): keep following it, and judge no junction until past this one
+            self.cooldown_until_m = odo_m + max(o.far_m for o in side) + 1.0
+            return False
         lateral = -lane.offset * (lane.lane_width_m or self.p.lane_width_m) if lane.found else 0.0
         self.path = pose.to_world(_junction_path(self.turn, y_c, lateral, self.p, getattr(self, "two_lane", True)))
         self.follow.reset()

@@ -29,7 +29,7 @@ class Opening:
     near_m: float  # ground y where the side road begins
     far_m: float  # where it ends (or the view ends: see `closed`)
     closed: bool  # the far edge was seen
-    dead: bool = False  # the side road visibly ends (a dead end): never an exit
+    dead: bool | None = False  # the side road visibly ends (a dead end: never an exit); None: cannot tell
 
     @property
     def centre_m(self) -> float:
@@ -212,8 +212,8 @@ class ScanJunctionParams:
     min_open_m: float = 2.5  # shortest opening (VIA's side roads are 4 m wide)
     row_gap_m: float = 0.4  # open rows this close together are one opening
     resume_m: float = 1.0  # the edge back (or the road's end) this soon after: the opening is closed
-    judge_beyond_m: float = 6.5  # a side road is judged a dead end only where the view reaches this far past the edge
-    dead_reach_m: float = 5.5  # ... and the road stops within this far past the edge
+    end_seen_m: float = 1.5  # a side road is a dead end only where ground is seen this far past its end
+    bend_look_m: float = 4.0  # ... and no road goes on within this far ahead or behind its rows there
     straight_m: float = 1.5  # road on both edges this far past a junction: it goes on straight
     dead_ahead_m: float = 6.0  # the road ending this soon past a junction: straight on is a dead end
 
@@ -245,7 +245,7 @@ def view_from_scan(scan, params: ScanJunctionParams | None = None) -> JunctionVi
             continue
         near, far, resumed, dead = o
         closed = resumed or (both and ends and scan.y[-1] - far <= p.resume_m)
-        sides[side] = Opening(near, far, bool(closed), dead)
+        sides[side] = Opening(near, far, bool(closed), dead)  # dead: True / False / None (cannot tell)
     straight = None
     opened = [o for o in sides.values() if o is not None]
     if opened:
@@ -272,6 +272,37 @@ def _opening(scan, rows: np.ndarray, beyond: np.ndarray, view: np.ndarray, ok: n
         return None if end + 1 >= len(rows) else _opening(scan, rows[end + 1:], beyond, view, ok, p)
     after = np.flatnonzero(ok[group[-1] + 1:])
     resumed = bool(len(after) and scan.y[group[-1] + 1 + after[0]] - far <= p.resume_m)
-    judged = view[group] >= p.judge_beyond_m
-    dead = bool(judged.sum() >= 3 and np.median(beyond[group][judged]) < p.dead_reach_m)
-    return near, far, resumed, dead
+    return near, far, resumed, _dead_end(scan, group, beyond, view, p)
+
+
+def _dead_end(scan, group: np.ndarray, beyond: np.ndarray, view: np.ndarray, p: ScanJunctionParams) -> bool | None:
+    """Does the side road of an opening visibly end? True when its rows' road stops well inside
+    the view (ground seen beyond its end) and no road goes on from there ahead of or behind the
+    side road's own rows (a bend just past the junction would); False when it is seen to go on;
+    None when too little of it is in view to tell."""
+    end = beyond[group]
+    seen = view[group] - end >= p.end_seen_m  # ground visible past the road's end
+    if scan.road is None:
+        return None
+    if seen.sum() < max(3, 0.5 * len(group)):
+        return None
+    e = float(np.median(end[seen]))
+    sgn = 1.0 if scan.run_r[group[0]] - scan.edge_r[group[0]] > 0 else -1.0
+    edge = float(np.median((scan.edge_r if sgn > 0 else scan.edge_l)[group]))
+    x_end = edge + sgn * e
+    near, far = float(scan.y[group[0]]), float(scan.y[group[-1]])
+    # beyond the end, along the side road's rows: ground, not road
+    road, vis = scan.region(x_end + sgn * 0.5, x_end + sgn * p.end_seen_m, near, far)
+    if vis.sum() < 10:
+        return None
+    if road[vis].mean() > 0.2:
+        return False
+    # around the end, ahead of and behind the side road's rows: no road carrying on
+    k = scan.bev.px_per_m[0] * scan.bev.px_per_m[1]
+    for y0, y1 in ((far + 0.6, far + p.bend_look_m), (near - p.bend_look_m, near - 0.6)):
+        road, vis = scan.region(x_end - sgn * 2.0, x_end + sgn * 2.0, y0, y1)
+        if vis.sum() < 0.5 * 4.0 * (y1 - y0) * k:
+            return None  # not enough of it in view to tell a dead end from a bend
+        if road[vis].mean() > 0.1:
+            return False
+    return True

@@ -31,7 +31,7 @@ _OPEN = np.ones((3, 3), np.uint8)
 
 @dataclass(frozen=True)
 class RoadEdgesParams:
-    x_half_m: float = 12.0  # wide enough to see a side road end (a dead end) from the junction
+    x_half_m: float = 14.0  # wide enough to see a side road end (a dead end) from the junction
     depth_m: float = 14.0  # bird's-eye depth beyond the nearest visible ground
     px_per_m: float = 8.0
     lab_tol: tuple[float, float, float] = (26.0, 9.0, 9.0)
@@ -123,6 +123,19 @@ class RoadScan:
     width_m: float
     stop: str
     y_view: float  # the far end of the view
+    road: np.ndarray | None = None  # the bird's-eye road mask scanned (bool), for junction checks
+    visible: np.ndarray | None = None  # where the bird's-eye view sees ground (bool)
+    bev: BirdsEye | None = None
+
+    def region(self, x0: float, x1: float, y0: float, y1: float) -> tuple[np.ndarray, np.ndarray]:
+        """(road, visible) bool pixels of the bird's-eye view inside ground x in [x0, x1] and
+        y in [y0, y1] metres (empty arrays when outside)."""
+        b = self.bev
+        (u0, v1), (u1, v0) = b.ground_to_bev(np.array([[min(x0, x1), min(y0, y1)], [max(x0, x1), max(y0, y1)]]))
+        h, w = self.road.shape
+        u0, u1 = int(np.clip(np.floor(u0), 0, w)), int(np.clip(np.ceil(u1), 0, w))
+        v0, v1 = int(np.clip(np.floor(v0), 0, h)), int(np.clip(np.ceil(v1), 0, h))
+        return self.road[v0:v1, u0:u1], self.visible[v0:v1, u0:u1]
 
 
 def scan_edges(road: np.ndarray, visible: np.ndarray, bev: BirdsEye, p: RoadEdgesParams,
@@ -178,7 +191,7 @@ def scan_edges(road: np.ndarray, visible: np.ndarray, bev: BirdsEye, p: RoadEdge
     to_x = lambda col: x0 + (col + 0.5) / k  # noqa: E731
     return RoadScan(y1 - (a[:, 0] + 0.5) / k, to_x(a[:, 1] - 0.5), to_x(a[:, 2] + 0.5), a[:, 3] > 0, a[:, 4] > 0,
                     to_x(a[:, 5] - 0.5), to_x(a[:, 6] + 0.5), to_x(a[:, 7]), to_x(a[:, 8]), width_m, stop,
-                    float(bev.y_range_m[1]))
+                    float(bev.y_range_m[1]), road, visible, bev)
 
 
 def _follows(hist: list[float], x: float, tol: float, step: float) -> bool:

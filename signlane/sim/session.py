@@ -56,6 +56,7 @@ def run_session(track: Track, sim_config: SimConfig, out: Path | None, config: C
             from signlane.sim.driver import Driver
             with Driver(config, sync_signs=lockstep) as driver:
                 rep = run_inprocess(sim, driver, progress)
+                rep["decisions"] = driver.behaviour.decisions  # what the driver saw at each junction
         elif with_driver:
             from signlane.sim.server import DriveServer, ServerOptions
             with DriveServer(config, ServerOptions(port=0, sync_signs=lockstep)) as srv:

@@ -241,9 +241,9 @@ def _segment(b: _Builder, rng, a: tuple[int, int], z: tuple[int, int], side: str
 
 
 def _stub_road(b: _Builder, rng, node: tuple[int, int], side: str) -> None:
-    """0-2 straight cells beyond a dead-end arm, then nothing."""
+    """Nothing, or one straight cell, beyond a dead-end arm (VIA's editor leaves the arm alone)."""
     step = SIDES[side]
-    for i in range(2, 2 + int(rng.integers(0, 3))):
+    for i in range(2, 2 + int(rng.integers(0, 2))):
         cell = (node[0] + i * step[0], node[1] + i * step[1])
         b.put(cell, 0, 0 if side in "NS" else 90, [cell])
 
@@ -253,9 +253,7 @@ def _map_dict(rng, b: _Builder, name: str, sign_prob: float, distractors: float)
     rows = max(r for _, r in b.used) + 5
     cell_datas = [{"id_inmap": r * cols + c, "tile_id": t, "rot": rot}
                   for (c, r), (t, rot) in sorted(b.tiles.items(), key=lambda kv: (kv[0][1], kv[0][0]))]
-    north = sorted(c for c, (t, rot) in b.tiles.items() if t == 0 and rot == 0)
-    straight = north or sorted(c for c, (t, _) in b.tiles.items() if t == 0)
-    start = straight[int(rng.integers(len(straight)))]
+    start = _start_cell(rng, b)
     data = {"map_name": name, "bg_id": int(rng.integers(0, 3)), "map_size": {"x": cols, "y": rows},
             "cell_datas": cell_datas, "anchor_offset": {"x": 0.0, "y": 0.0},
             "car_pos": {"x": float(start[0]), "y": float(start[1])}}
@@ -263,6 +261,18 @@ def _map_dict(rng, b: _Builder, name: str, sign_prob: float, distractors: float)
     data["signlane_distractors"] = []  # filled in world metres by the renderer's scene builder
     data["signlane_distractor_density"] = distractors
     return data
+
+
+def _start_cell(rng: np.random.Generator, b: _Builder) -> tuple[int, int]:
+    """A north-south straight with two more straights north of it (room to see what comes), on
+    the network's loops (not on a dead-end stub), for VIA's start facing north."""
+    def straight_ns(c):
+        return b.tiles.get(c) == (0, 0)
+    ok = [c for c in sorted(b.tiles) if straight_ns(c) and straight_ns((c[0], c[1] + 1)) and straight_ns((c[0], c[1] + 2))
+          and straight_ns((c[0], c[1] - 1))]
+    north = ok or sorted(c for c in b.tiles if straight_ns(c))
+    pool = north or sorted(c for c, (t, _) in b.tiles.items() if t == 0)
+    return pool[int(rng.integers(len(pool)))]
 
 
 def _place_signs(rng: np.random.Generator, data: dict, prob: float) -> list[dict]:
