@@ -214,12 +214,22 @@ def test_junction_ahead_is_reported_with_its_exits(loop):
             assert j.distance >= 0 and j.chosen in j.exits
             found.add(j.exits)
     assert ("left", "straight") in found or ("right", "straight") in found
-    # the distance counts down to each junction the lap passes, and is 0 inside its block
-    for leg in (leg for leg in route.legs if leg.tile.junction):
+    # the distance counts down to each junction the lap passes, is 0 in the first half of the
+    # way through its block (a T's is three cells long) and then goes to the next junction
+    legs = route.legs
+    junctions = [k for k, leg in enumerate(legs) if leg.tile.junction]
+    assert len(junctions) >= 2
+    for n, k in enumerate(junctions):
+        leg = legs[k]
+        length = (legs[k + 1].s0 if k + 1 < len(legs) else route.length) - leg.s0
         before = renderer.render_on_route(route, leg.s0 - 7.0, Camera()).truth.junction
-        inside = renderer.render_on_route(route, leg.s0 + 5.0, Camera()).truth.junction
+        inside = renderer.render_on_route(route, leg.s0 + 0.4 * length, Camera()).truth.junction
+        past = renderer.render_on_route(route, leg.s0 + 0.6 * length, Camera()).truth.junction
         assert before.distance == pytest.approx(7.0, abs=0.05) and inside.distance == 0.0
         assert before.chosen == inside.chosen == leg.turn
+        following = legs[junctions[(n + 1) % len(junctions)]]
+        ahead = (following.s0 - leg.s0 - 0.6 * length) % route.length
+        assert past.distance == pytest.approx(ahead, abs=0.05) and past.chosen == following.turn
 
 
 def test_a_dead_end_arm_is_not_an_exit():
