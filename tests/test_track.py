@@ -17,7 +17,6 @@ from signlane.world.maps import bundled_map
 from signlane.world.procedural import generate_map
 from signlane.world.route import Route, random_policy
 from signlane.world.scene import build_scene
-from signlane.world.tiles import Port
 from signlane.world.topdown import road_mask
 from signlane.world.track import MapError, RoadStyle, Track
 
@@ -423,7 +422,8 @@ def test_bundled_maps_load_lap_and_their_signs_face_their_traffic(name):
     assert lap.closed and lap.length > 100.0
     assert np.hypot(*np.diff(lap.centre, axis=0).T).max() < 0.3  # a continuous centre line
     pose = lap.pose_at(lap.start_s)
-    assert np.allclose((pose.x, pose.y), track.cell_centre(track.start_cell)) and pose.heading == pytest.approx(math.pi / 2)
+    assert np.allclose((pose.x, pose.y), track.cell_centre(track.start_cell))
+    assert pose.heading == pytest.approx(math.pi / 2)
     for tile, port in track.dead_ends:
         assert not track.leads_on(tile, port)
     if name == "via_town":

@@ -236,7 +236,8 @@ def test_a_dead_end_arm_is_not_an_exit():
     """A T-junction whose branch leads off the map: the car is offered only the way on."""
     data = stadium()
     w = data["map_size"]["x"]
-    data["cell_datas"] = [c for c in data["cell_datas"] if c["id_inmap"] not in (5 * w + w - 2, 6 * w + w - 2, 7 * w + w - 2)]
+    east = {r * w + w - 2 for r in (5, 6, 7)}  # three straights of the east side
+    data["cell_datas"] = [c for c in data["cell_datas"] if c["id_inmap"] not in east]
     data["cell_datas"].append({"id_inmap": 6 * w + w - 2, "tile_id": 4, "rot": 0})  # branch east, off the map
     track = Track.from_via(data)
     assert len(track.dead_ends) == 1
@@ -311,7 +312,8 @@ def test_via_drivable_mask_is_the_carriageway_between_the_kerbs_and_the_kerbs_ar
         inside += drivable[r, a:b + 1].sum()
         total_in += b - a + 1
         # beyond the kerbs (2 px clear of them), out to 1.5 m: not road
-        for lo, hi in ((cols["left_out"][i], cols["left_kerb"][i] - 2), (cols["right_kerb"][i] + 2, cols["right_out"][i])):
+        beyond = ((cols["left_out"][i], cols["left_kerb"][i] - 2), (cols["right_kerb"][i] + 2, cols["right_out"][i]))
+        for lo, hi in beyond:
             lo, hi = int(math.ceil(max(lo, 0))), int(math.floor(min(hi, cam.width - 1)))
             outside += drivable[r, lo:hi + 1].sum()
             total_out += max(hi - lo + 1, 0)
