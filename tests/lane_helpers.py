@@ -1,8 +1,5 @@
 """Shared scenes and a runner for the lane-method tests."""
-import json
-
 import numpy as np
-from importlib import resources
 
 from signlane import lanes
 from signlane.camera import Camera
@@ -13,12 +10,12 @@ from signlane.world.scene import build_scene
 from signlane.world.track import RoadStyle, Track
 from signlane.world.sampling import FrameSampler, SamplerConfig
 
-LOOP = json.loads(resources.files("signlane.world").joinpath("maps/loop_demo.json").read_text())
 CAM = Camera()
 
 
 def stadium(n: int = 8) -> dict:
-    """A VIA map of a rectangle: n straights a side between four 2x2 quarter turns."""
+    """A VIA map of a rectangle on an (n+4)-cell square grid: n-2 straights a side between four
+    2x2 quarter turns, the car starting northbound on the west side's first straight."""
     W = H = n + 4
     cells = [(1, 1, 2, 180), (W - 2, 1, 2, 270), (W - 2, H - 2, 2, 0), (1, H - 2, 2, 90)]
     cells += [(c, r, 0, 90) for c in range(3, W - 3) for r in (1, H - 2)]
@@ -27,14 +24,20 @@ def stadium(n: int = 8) -> dict:
             "cell_datas": [{"id_inmap": r * W + c, "tile_id": t, "rot": rot} for c, r, t, rot in cells]}
 
 
-# arc lengths with 40 m or more of straight road ahead on the painted stadium (96 m sides)
+# arc lengths with 40 m or more of straight road ahead on the painted stadium (12 m cells: 72 m
+# straights joined by quarter turns of 18 m radius)
 STRAIGHTS = (5.0, 105.0, 205.0, 305.0)
 
 
-def loop_scene() -> tuple[Route, Renderer]:
+def loop_scene(style: RoadStyle | None = None) -> tuple[Route, Renderer]:
     """Long straights in the painted two-lane style (these methods look for lane paint)."""
-    track = Track.from_via(stadium(), style=RoadStyle())
+    track = Track.from_via(stadium(), style=style or RoadStyle())
     return Route.loop(track), Renderer(build_scene(track, seed=2))
+
+
+# the road the Donkey-car autopilot (color-hough's published variant) was written for: a solid
+# yellow line on the lane's left, a white one on its right
+DONKEY_STYLE = RoadStyle(centre_line="solid", centre_color="yellow")
 
 
 def run_method(method: str, image, camera=CAM, variant: str = "robust") -> LaneEstimate:

@@ -1,6 +1,10 @@
 """Config: defaults, TOML, --set overrides and clear errors."""
+import math
+from dataclasses import replace
+
 import pytest
 
+from signlane.camera import via_camera
 from signlane.config import Config
 
 
@@ -11,8 +15,16 @@ def test_defaults_toml_and_overrides(tmp_path):
     assert cfg.camera.pitch_deg == 12.0 and cfg.camera.height_m == 1.5
     assert cfg.lanes.method == "canny-scan" and cfg.lanes.variant == "published"
     assert cfg.signs.enabled is False
-    assert Config().camera.pitch_deg == 10.0  # defaults untouched
+    assert cfg.camera.hfov_deg == Config().camera.hfov_deg  # what the file and --set leave alone
     assert cfg.to_dict()["camera"]["pitch_deg"] == 12.0
+    # defaults untouched by loading: VIA's camera (60 degrees vertical at 4:3, in effect 2.9 m
+    # up at 11.8 degrees) and the lane method that tells kerbed and painted roads apart
+    d = Config()
+    assert (d.camera.height_m, d.camera.pitch_deg, d.camera.roll_deg) == (2.9, 11.8, 0.0)
+    assert d.camera.hfov_deg == pytest.approx(math.degrees(2 * math.atan(math.tan(math.radians(30)) * 4 / 3)), abs=0.01)
+    assert d.camera.camera(640, 480).focal_px == pytest.approx(240 / math.tan(math.radians(30)), rel=1e-3)
+    assert d.camera.camera(640, 480) == replace(via_camera(640, 480), hfov_deg=d.camera.hfov_deg)
+    assert (d.lanes.method, d.lanes.variant) == ("auto", "robust")
 
 
 @pytest.mark.parametrize("override,match", [("camera.zoom=2", "unknown setting 'zoom'"),

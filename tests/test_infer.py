@@ -5,6 +5,7 @@ import cv2
 import numpy as np
 import pytest
 
+from signlane.camera import via_camera
 from signlane.cli import main
 from signlane.world.sampling import FrameSampler, SamplerConfig
 
@@ -14,7 +15,15 @@ LANE_KEYS = {"method", "found", "offset", "heading", "curvature", "confidence", 
 
 @pytest.fixture(scope="module")
 def road_frames():
-    s = FrameSampler(3, SamplerConfig(effects="clean", randomise=False))
+    """VIA-style frames from VIA's camera: what infer's defaults are for."""
+    s = FrameSampler(3, SamplerConfig(effects="clean", randomise=False, style="via"))
+    return [s.sample(i) for i in (0, 5, 10)]
+
+
+@pytest.fixture(scope="module")
+def painted_frames():
+    """Painted-lane frames from another camera (90 degrees, 1.3 m, 10 degrees down)."""
+    s = FrameSampler(3, SamplerConfig(effects="clean", randomise=False, style="painted"))
     return [s.sample(i) for i in (0, 5, 10)]
 
 
@@ -36,6 +45,7 @@ def test_images_folder_json_and_annotated_output(tmp_path, road_frames, capsys):
     assert len(recs) == 3 and all(set(r) == KEYS and set(r["lane"]) == LANE_KEYS for r in recs)
     for r, smp in zip(recs, road_frames):
         assert r["width"] == 320 and r["height"] == 240
+        assert smp.truth.camera == via_camera(320, 240)
         assert r["lane"]["found"] and abs(r["lane"]["offset"] - smp.truth.offset) < 0.15
         assert -1 <= r["control"]["steering"] <= 1 and r["control"]["state"] == "cruise"
     for i in range(3):
@@ -43,6 +53,24 @@ def test_images_folder_json_and_annotated_output(tmp_path, road_frames, capsys):
         mask = cv2.imread(str(out / f"f{i}_lane.png"), cv2.IMREAD_UNCHANGED)
         assert mask.shape == (240, 320) and set(np.unique(mask)) <= {0, 255} and mask.max() == 255
     assert "lanes found" in err and "frames" in err
+
+
+def test_painted_lanes_from_another_camera_given_with_set(tmp_path, painted_frames, capsys):
+    for i, smp in enumerate(painted_frames):
+        cv2.imwrite(str(tmp_path / f"p{i}.png"), smp.image)
+    cam = painted_frames[0].truth.camera
+    sets = [f"camera.{k}={getattr(cam, k)}" for k in ("hfov_deg", "height_m", "pitch_deg")]
+    code, stdout, err = _run([tmp_path, "--json", "-", *[a for kv in sets for a in ("--set", kv)]], capsys)
+    assert code == 0, err
+    recs = [json.loads(line) for line in stdout.splitlines()]
+    assert len(recs) == 3
+    for r, smp in zip(recs, painted_frames):
+        assert r["lane"]["found"] and abs(r["lane"]["offset"] - smp.truth.offset) < 0.15
+    # with VIA's camera assumed instead, the same frames read off (the camera matters)
+    code, stdout, _ = _run([tmp_path, "--json", "-"], capsys)
+    wrong = [json.loads(line)["lane"] for line in stdout.splitlines()]
+    assert max(abs(w["offset"] - smp.truth.offset) if w["found"] else 1.0
+               for w, smp in zip(wrong, painted_frames)) > 0.15
 
 
 def test_video_in_annotated_video_out(tmp_path, road_frames, capsys):

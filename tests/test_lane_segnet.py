@@ -9,6 +9,7 @@ import pytest
 
 from signlane import lanes
 from signlane.cli import main
+from signlane.config import CameraConfig
 from signlane.eval_masks import MaskCounts
 from signlane.lanes import seg_model
 from signlane.onnx_model import ModelError
@@ -29,7 +30,10 @@ def trained(tmp_path_factory):
     smp = FrameSampler(3, SamplerConfig(effects="clean", randomise=False))
     for i in range(6):
         cv2.imwrite(str(photos / f"p{i}.png"), smp.sample(i).image)
-    auto = autolabel_lanes([str(photos)], root / "auto", progress=False)
+    # painted-lane photos from their own camera, not VIA's (the default)
+    cam = smp.sample(0).truth.camera
+    auto = autolabel_lanes([str(photos)], root / "auto", camera=CameraConfig(cam.hfov_deg, cam.height_m, cam.pitch_deg),
+                           progress=False)
     report = train_lanes([root / "synthetic", root / "auto"], root / "run", epochs=1, batch_size=8, workers=0,
                          quiet=True, eval_frames=8, threads=1)
     onnx_path = root / "lanes.onnx"
@@ -66,7 +70,11 @@ def test_smoke_training_on_mixed_sets_writes_its_outputs(trained):
     for name in ("checkpoints/last.ckpt", "config.json", "samples/epoch_000.png"):
         assert (run / name).exists(), name
     assert list((run / "logs").rglob("metrics.csv")) and list((run / "tensorboard").rglob("events.*"))
-    assert json.loads((run / "config.json").read_text())["train_frames"] > 24
+    # both sets were trained on: every frame the stable split puts on the train side, from each
+    from train.lane_data import list_frames, split_of
+    train = [it for it in list_frames([root / "synthetic", root / "auto"]) if split_of(it.key, 0.1) == "train"]
+    assert {it.key.split("/")[0] for it in train} == {"synthetic", "auto"}
+    assert json.loads((run / "config.json").read_text())["train_frames"] == len(train)
     assert 0.0 <= report["val_f1_at_2px"] <= 1.0 and report["parameters"] <= 500_000
 
 

@@ -4,7 +4,7 @@ import cv2
 import numpy as np
 import pytest
 
-from lane_helpers import CAM, run_method
+from lane_helpers import CAM, DONKEY_STYLE, STRAIGHTS, loop_scene, run_method
 from signlane import lanes
 from signlane.camera import Camera
 from signlane.lanes.color_hough import (ColorHoughParams, ColorHoughState, color_hough, ground_samples, merge_close,
@@ -38,18 +38,20 @@ def test_gray_and_tiny_images(lane_loop):
             assert isinstance(est, LaneEstimate) and est.debug_mask.shape == shape[:2]
 
 
-def test_published_variant_is_the_source_and_runs(lane_loop):
+def test_published_variant_is_the_source_and_runs():
     p = lanes.params_for(METHOD, "published")
     assert (p.yellow_lo, p.white_lo, p.white_hi[1]) == ((15, 40, 40), (0, 0, 200), 30)
     assert (p.canny_low, p.canny_high, p.hough_threshold, p.min_line_length, p.max_line_gap) == (200, 400, 10, 8, 8)
-    route, renderer = lane_loop
-    for heading in (0.1, -0.1):
-        smp = renderer.render_on_route(route, 105.0, CAM, heading_offset=heading)
-        est = run(smp.image, variant="published")
-        assert isinstance(est, LaneEstimate) and est.method == METHOD and est.found
-        assert np.sign(est.heading) == np.sign(heading) and abs(est.offset - smp.truth.offset) < 0.1
-        # the source looks for yellow on the left and white on the right, in the lower quarters
-        assert not est.debug_mask[: CAM.height // 2].any()
+    # on the road it was written for (yellow left line, white right line), on every straight
+    route, renderer = loop_scene(DONKEY_STYLE)
+    for s in STRAIGHTS:
+        for heading in (0.1, -0.1):
+            smp = renderer.render_on_route(route, s, CAM, heading_offset=heading)
+            est = run(smp.image, variant="published")
+            assert isinstance(est, LaneEstimate) and est.method == METHOD and est.found
+            assert np.sign(est.heading) == np.sign(heading) and abs(est.offset - smp.truth.offset) < 0.1, (s, heading)
+            # the source looks for yellow on the left and white on the right, in the lower quarters
+            assert not est.debug_mask[: CAM.height // 2].any()
 
 
 def test_segments_across_the_road_are_dropped_and_double_strokes_merged():

@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
-from signlane.camera import Camera
+from signlane.camera import via_camera
 from signlane.signs.eval_proposals import Tally, evaluate_frames, format_table, plot_recall_by_size
 from signlane.types import SignDetection
 from signlane.world.truth import SignTruth
@@ -149,7 +149,7 @@ def test_published_merges_touching_red_and_blue_robust_keeps_them_apart() -> Non
 
 # --- rendered frames -------------------------------------------------------------------------------
 def _frames_before_signs(seed: int, n: int):
-    """(image, signs) rendered 5-14 m before each sign of the demo loop that faces the traffic,
+    """(image, signs) seen by VIA's camera 5-14 m before each sign of the demo loop facing the traffic,
     both directions, with normal effects and randomised looks: a small sign-rich test set."""
     via = json.loads(resources.files("signlane.world").joinpath("maps/loop_demo.json").read_text())
     track = Track.from_via(via)
@@ -164,7 +164,7 @@ def _frames_before_signs(seed: int, n: int):
                 stops.append((route, s))
     for i in range(n):
         route, s = stops[i % len(stops)]
-        cam = Camera(width=640, height=480)
+        cam = via_camera(640, 480)
         sample = renderer.render_on_route(route, s - rng.uniform(5, 14), cam, rng.normal(0, 0.4),
                                           np.radians(rng.normal(0, 3)), Effects.normal(), rng)
         yield sample.image, sample.truth.signs

@@ -117,16 +117,20 @@ def _image_polyline(pose: Pose, camera: Camera, world: np.ndarray) -> np.ndarray
 
 
 def _junction(route: Route, s: float) -> JunctionTruth | None:
-    """The next junction ahead within one lap (or the route's end)."""
+    """The junction the car is in, up to halfway through it (distance 0: a T-junction's block
+    is three cells long, so the car can be in it well before its branch), else the next one
+    ahead within one lap (or the route's end)."""
     legs = route.legs
     cur = route.leg_at(s)
     k = legs.index(cur)
-    for j in range(1, len(legs) + 1):
+    here = s % route.length if route.closed else s
+    end = legs[k + 1].s0 if k + 1 < len(legs) else route.length
+    for j in range(0 if here < (cur.s0 + end) / 2 else 1, len(legs) + 1):
         if not route.closed and k + j >= len(legs):
             return None
         leg = legs[(k + j) % len(legs)]
         if leg.tile.junction:
-            dist = leg.s0 - (s % route.length if route.closed else s)
+            dist = 0.0 if j == 0 else leg.s0 - here
             if dist < 0:
                 dist += route.length
             exits = tuple(sorted(route.track.turn_of(leg.entry, p)
