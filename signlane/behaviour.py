@@ -164,15 +164,16 @@ class Behaviour:
     def _exits(self, j: JunctionView) -> set[str] | None:
         """Turns available, or None when this is not (yet) a junction: a curve opens to one
         side only and does not go on straight. A dead end is never an exit; a T-junction reached
-        along its stem whose one arm is a dead end leaves one exit (a forced turn)."""
+        along its stem whose one arm is a dead end, or one whose road straight on ends, leaves one
+        exit (a forced turn)."""
         sides = {name: o for name, o in (("left", j.left), ("right", j.right)) if o is not None and o.closed}
         if not sides:
             return None
         exits = {name for name in sides if not self._dead.get(name)}
-        if j.straight:
+        if j.straight and not self._dead.get("straight"):
             exits.add("straight")
-        if len(exits) >= 2 or (len(sides) == 2 and exits):
-            return exits
+        if len(exits) >= 2 or (exits and (len(sides) == 2 or self._dead.get("straight"))):
+            return exits  # (one exit: the road on is a dead end, so the turn is forced)
         return None
 
     def choose(self, exits: set[str], instruction: str | None) -> str:
@@ -202,6 +203,8 @@ class Behaviour:
                 seen = True
                 if o.dead is not None:
                     self._dead[name] = o.dead
+        if seen and j.straight_dead is not None:
+            self._dead["straight"] = j.straight_dead
         if seen:
             self._dead_seen_m = odo_m
         elif odo_m - getattr(self, "_dead_seen_m", -1e9) > self.p.dead_memory_m:

@@ -42,6 +42,7 @@ class JunctionView:
     right: Opening | None
     straight: bool | None  # road beyond the side road; None = not judged (no opening or not seen)
     road_mask: np.ndarray | None = None  # uint8 bird's-eye 0/255, for people
+    straight_dead: bool | None = None  # the road ahead visibly ends past the junction; None = cannot tell
 
 
 @dataclass(frozen=True)
@@ -215,7 +216,7 @@ class ScanJunctionParams:
     end_seen_m: float = 1.5  # a side road is a dead end only where ground is seen this far past its end
     bend_look_m: float = 4.0  # ... and no road goes on within this far ahead or behind its rows there
     straight_m: float = 1.5  # road on both edges this far past a junction: it goes on straight
-    dead_ahead_m: float = 6.0  # the road ending this soon past a junction: straight on is a dead end
+    dead_ahead_m: float = 10.0  # the road ending this soon past a junction: straight on is a dead end
 
 
 def view_from_scan(scan, params: ScanJunctionParams | None = None) -> JunctionView:
@@ -246,15 +247,33 @@ def view_from_scan(scan, params: ScanJunctionParams | None = None) -> JunctionVi
         near, far, resumed, dead = o
         closed = resumed or (both and ends and scan.y[-1] - far <= p.resume_m)
         sides[side] = Opening(near, far, bool(closed), dead)  # dead: True / False / None (cannot tell)
-    straight = None
+    straight = dead_ahead = None
     opened = [o for o in sides.values() if o is not None]
     if opened:
         far = max(o.far_m for o in opened)
         past = scan.y[scan.ok_l & scan.ok_r & (scan.y > far)]
         straight = bool(len(past) and past.max() - far >= p.straight_m)
-        if straight and ends and scan.y[-1] - far < p.dead_ahead_m:
-            straight = False  # the road stops just past the junction: a dead end ahead
-    return JunctionView(sides["left"], sides["right"], straight)
+        if straight:
+            dead_ahead = _road_ends(scan, far, p)
+            if dead_ahead:
+                straight = False  # the road stops just past the junction: a dead end ahead
+    return JunctionView(sides["left"], sides["right"], straight, straight_dead=dead_ahead)
+
+
+def _road_ends(scan, far_m: float, p: ScanJunctionParams) -> bool | None:
+    """Does the road straight on end soon past a junction (ground ahead of its last row and to
+    either side of it, not a bend)? None when the scan ran out of view instead."""
+    if scan.stop != "lost":
+        return None if scan.y[-1] - far_m < p.dead_ahead_m else False
+    if scan.y[-1] - far_m >= p.dead_ahead_m:
+        return False
+    y_end = float(scan.y[-1])
+    x_mid = float(0.5 * (scan.edge_l[-1] + scan.edge_r[-1]))
+    road, vis = scan.region(x_mid - 5.0, x_mid + 5.0, y_end + 0.5, y_end + 3.5)
+    k = scan.bev.px_per_m[0] * scan.bev.px_per_m[1]
+    if vis.sum() < 0.5 * 30.0 * k:
+        return None
+    return bool(road[vis].mean() < 0.1)
 
 
 def _opening(scan, rows: np.ndarray, beyond: np.ndarray, view: np.ndarray, ok: np.ndarray,

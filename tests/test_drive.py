@@ -5,10 +5,11 @@ import math
 import numpy as np
 import pytest
 
+from signlane import lanes
 from signlane.behaviour import Behaviour, _junction_path, BehaviourParams
-from signlane.camera import Camera
+from signlane.camera import Camera, via_camera
 from signlane.config import Config
-from signlane.junction import JunctionDetector
+from signlane.junction import JunctionDetector, view_from_scan
 from signlane.odometry import Odometry
 from signlane.sim.driver import Driver
 from signlane.sim.simulator import SimConfig, Simulator, run_inprocess
@@ -18,7 +19,7 @@ from signlane.world.procedural import generate_map
 from signlane.world.render import Renderer
 from signlane.world.route import Pose, Route, random_policy
 from signlane.world.scene import build_scene
-from signlane.world.track import Track
+from signlane.world.track import RoadStyle, Track
 
 
 FRAME = 1 / 30  # VIA's usual frame period
@@ -150,40 +151,52 @@ def test_junction_paths_end_on_the_exit_lane():
     assert np.all(np.diff(_junction_path("straight", 14.0, 0.2, p)[:, 1]) > 0)
 
 
+def _junction_centre_ahead(route: Route, leg) -> float:
+    """Arc length from a junction leg's start to the junction's centre (its pivot cell)."""
+    centre = route.track.cell_centre((leg.tile.col, leg.tile.row))
+    return float(route.project(*centre, s_hint=leg.s0 + 10.0)[0] - leg.s0)
+
+
 @pytest.fixture(scope="module")
-def junction_frames():
-    """(image, truth junction) 6 m before each of the first junctions of a procedural track."""
-    track = Track.from_via(generate_map(0, size="medium"))
+def painted_junctions():
+    """(image, truth junction, side road centre ahead) 9 m before the box of each of the first
+    junctions of a painted procedural track (a T-junction's through arms are plain road), seen by
+    VIA's camera (the driver's default), and a plain frame."""
+    track = Track.from_via(generate_map(0, size="medium"), style=RoadStyle())
     route = Route.drive(track, 1500, random_policy(np.random.default_rng(1)))
     renderer = Renderer(build_scene(track, seed=0))
-    cam = Camera(320, 240)
+    cam = via_camera(320, 240)
     out = []
     for leg in [l for l in route.legs if l.tile.junction][:5]:
-        s = renderer.render_on_route(route, leg.s0 - 6.0, cam, 0.0, 0.0, Effects.clean(), np.random.default_rng(0))
-        out.append((s.image, s.truth.junction))
+        centre = _junction_centre_ahead(route, leg)
+        box = leg.s0 + centre - track.cell_m / 2
+        s = renderer.render_on_route(route, box - 9.0, cam, 0.0, 0.0, Effects.clean(), np.random.default_rng(0))
+        out.append((s.image, s.truth.junction, 9.0 + track.cell_m / 2))
     plain = renderer.render_on_route(route, route.legs[0].s0 + 2.0, cam, 0.0, 0.0, Effects.clean())
     return cam, out, plain.image
 
 
-def test_junction_detector_sees_the_exits(junction_frames):
-    cam, frames, plain = junction_frames
+def test_painted_junction_detector_sees_the_exits(painted_junctions):
+    cam, frames, plain = painted_junctions
     det = JunctionDetector(cam)
-    for image, truth in frames:
+    for image, truth, centre in frames:
         view = det.detect(image)
         exits = {s for s, o in (("left", view.left), ("right", view.right)) if o is not None}
         assert exits == set(truth.exits) - {"straight"}
         assert view.straight == ("straight" in truth.exits)
         side = view.right or view.left
-        assert abs(side.centre_m - (truth.distance + 6.0)) < 1.0  # the side road's centre, 6 m into the cell
+        # the side road's centre, within a quarter of its width (VIA's camera sees the strips
+        # beside a two-lane road only from about 10 m, which moves a near opening's middle)
+        assert abs(side.centre_m - centre) < 1.9
     view = det.detect(plain)
     assert view.left is None and view.right is None
 
 
-def test_junction_detector_judges_nothing_where_all_ground_looks_like_road(junction_frames):
+def test_junction_detector_judges_nothing_where_all_ground_looks_like_road(painted_junctions):
     """Dark grass the colour of asphalt: every side looks open, so no opening may be reported, and
     one frame where the verge happens to look different must not open one either (the far
     ground's share of road is remembered across frames)."""
-    cam, frames, plain = junction_frames
+    cam, frames, plain = painted_junctions
     image = frames[0][0]
     assert JunctionDetector(cam).detect(image).right is not None  # a real side road, fresh detector
     det = JunctionDetector(cam)
@@ -194,74 +207,101 @@ def test_junction_detector_judges_nothing_where_all_ground_looks_like_road(junct
     assert view.left is None and view.right is None
 
 
-def junction_scores(track_seeds, randomise: bool) -> tuple[int, int, int, int]:
-    """(junction frames read right, junction frames, plain-road frames with a false opening,
-    plain-road frames): 4 and 8 m before the first 3 junctions of each track's drive, and 2 m
-    into stretches of four straight tiles."""
-    cam = Camera(320, 240)
-    det = JunctionDetector(cam)
-    right = n = false = plain = 0
-    for seed in track_seeds:
-        det.reset()  # another world: its looks are not the last one's
-        track = Track.from_via(generate_map(seed % 5, size="medium"))
-        route = Route.drive(track, 1500, random_policy(np.random.default_rng(seed)))
-        renderer = Renderer(build_scene(track, seed=seed, randomise=randomise))
-        for leg in [leg for leg in route.legs if leg.tile.junction][:3]:
-            for back in (4.0, 8.0):
-                s = renderer.render_on_route(route, leg.s0 - back, cam, 0.0, 0.0, Effects.clean())
-                view, truth = det.detect(s.image), s.truth.junction
-                exits = {side for side, o in (("left", view.left), ("right", view.right)) if o is not None}
-                right += exits == set(truth.exits) - {"straight"} and view.straight == ("straight" in truth.exits)
-                n += 1
-        legs = route.legs
-        starts = [a for a in range(len(legs) - 3) if all(legs[a + k].tile.tile_id == 0 for k in range(4))][:6]
-        for a in starts:
-            view = det.detect(renderer.render_on_route(route, legs[a].s0 + 2.0, cam, 0.0, 0.0, Effects.clean()).image)
-            false += view.left is not None or view.right is not None
-            plain += 1
-    return right, n, false, plain
+def kerbed_views(seed: int, backs=(12.0, 9.0, 6.0)):
+    """For the first junctions of a VIA-style procedural track: (truth, [views from the road
+    edges at each distance before it]); and the views 2 m into stretches of plain road."""
+    track = Track.from_via(generate_map(seed))
+    route = Route.drive(track, 1500, random_policy(np.random.default_rng(seed)))
+    renderer = Renderer(build_scene(track, seed=seed))
+    cam = via_camera(320, 240)
+    method = lanes.get("road-edges", camera=cam)
+    out = []
+    for leg in [leg for leg in route.legs if leg.tile.junction][:3]:
+        views = []
+        for back in backs:
+            method.reset()
+            s = renderer.render_on_route(route, leg.s0 - back, cam)
+            method(s.image)
+            views.append(view_from_scan(method.state.scan))
+        out.append((s.truth.junction, views))
+    legs = route.legs
+    plain = []
+    for a in [a for a in range(len(legs) - 5) if all(legs[a + k].tile.tile_id == 0 for k in range(6))][:4]:
+        method.reset()
+        method(renderer.render_on_route(route, legs[a].s0 + 2.0, cam).image)
+        plain.append(view_from_scan(method.state.scan))
+    return out, plain
 
 
-def test_junction_detector_copes_with_random_looks():
-    """Verges the colour of the road (sand, dark grass, grey) and shadows across it. With colour
-    alone these frames gave 4/18 junctions right and 18/24 plain frames with a false opening;
-    with the edge-line cue 15/18 and 5/24; with the far-ground veto as well 6/18 and 0/24: where
-    the verge cannot be told from the road no junction is judged, and a false opening (which
-    sends the car straight off a bend) is worse than a missed one (the car follows its lane).
-    The default looks stay perfect."""
-    right, n, false, plain = junction_scores(range(4), randomise=True)
-    assert n == 18 and plain == 24
-    assert right >= 5 and false == 0
-    assert junction_scores(range(4), randomise=False) == (18, 18, 0, 24)
+@pytest.mark.parametrize("seed", [1, 2, 6])
+def test_kerbed_junctions_are_read_from_the_road_edges(seed):
+    """On VIA's kerbed carriageway the openings are where an edge jumps away: the exits seen 6 m
+    before a junction are the real ones (a dead-end arm is judged dead from further off, or not
+    offered), straight on is told right, and plain road opens nothing."""
+    junctions, plain = kerbed_views(seed)
+    for truth, views in junctions:
+        def reads(v):  # the turns it offers are the real ones, and straight on is right
+            seen = {name for name, o in (("left", v.left), ("right", v.right)) if o is not None and o.closed}
+            return set(truth.exits) - {"straight"} <= seen and v.straight == ("straight" in truth.exits)
+        assert any(reads(v) for v in views)  # by the time the driver plans (12 m or closer)
+        dead = {name for v in views for name, o in (("left", v.left), ("right", v.right))
+                if o is not None and o.closed and o.dead}
+        assert not dead & set(truth.exits)  # never a real exit judged a dead end
+    assert all(v.left is None and v.right is None for v in plain)
+
+
+def test_a_dead_end_arm_is_judged_dead_from_the_approach():
+    """VIA's editor makes T-junctions whose arm leads nowhere: seen from 9-12 m, the arm's end
+    is in view and the driver's memory keeps that verdict to the junction."""
+    data = {"map_name": "stub", "map_size": {"x": 5, "y": 14}, "car_pos": {"x": 2, "y": 2},
+            "cell_datas": [{"id_inmap": r * 5 + 2, "tile_id": 0, "rot": 0} for r in range(1, 11)]
+            + [{"id_inmap": 12 * 5 + 2, "tile_id": 4, "rot": 0}]}  # a T at row 12, its branch east
+    track = Track.from_via(data)  # the road's south end, and the T's north arm and branch, end
+    assert len(track.dead_ends) == 3
+    route = Route.drive(track, 60)
+    renderer = Renderer(build_scene(track))
+    cam = via_camera(320, 240)
+    method = lanes.get("road-edges", camera=cam)
+    verdicts = []
+    for back in np.arange(14.0, 5.0, -1.0):
+        s = renderer.render_on_route(route, route.legs[-1].s0 - back, cam)
+        method(s.image)
+        v = view_from_scan(method.state.scan)
+        if v.right is not None and v.right.closed:
+            verdicts.append(v.right.dead)
+    assert True in verdicts and False not in verdicts
 
 
 def _sign_ahead(track: Track, s_m: float, label_id: int) -> dict:
-    """A VIA sign entry beside the ego lane s_m metres along the start route, facing the car."""
+    """A VIA sign entry 3.4 m right of the ego lane s_m metres along the start route, facing the
+    car: pos in cells from the grid centre (4 m cells), rot counter-clockwise from facing south."""
     route = Route.drive(track, s_m + 20)
-    pose = route.pose_at(s_m)
-    xy = np.array([pose.x, pose.y]) + 3.4 * pose.right
+    pose = route.pose_at(route.start_s + s_m)
+    xy = (np.array([pose.x, pose.y]) + 3.4 * pose.right) / 4.0
     facing = pose.heading + math.pi
-    return {"sign_id": label_id, "pos": {"x": xy[0] / track.cell_m, "y": -xy[1] / track.cell_m},
-            "rot": (90.0 - math.degrees(facing)) % 360}
+    return {"sign_id": label_id, "pos": {"x": float(xy[0]), "y": float(xy[1])},
+            "rot": (math.degrees(facing) + 90.0) % 360}
 
 
-def test_a_lockstep_drive_completes_a_lap_of_a_small_procedural_track():
-    data = generate_map(3, size="small")  # 12 tiles: straights and four bends
-    sim = Simulator(Track.from_via(data), SimConfig(width=320, height=240, max_seconds=90))
+@pytest.mark.parametrize("style", ["via", "painted"])
+def test_a_lockstep_drive_completes_a_lap_of_a_small_procedural_track(style):
+    data = generate_map(3, size="small")
+    sim = Simulator(Track.from_via(data, style=RoadStyle.named(style)), SimConfig(width=320, height=240,
+                                                                                  max_seconds=150))
     with Driver(Config.load(None, ["signs.enabled=false"])) as driver:
         rep = run_inprocess(sim, driver)
     assert rep["laps"] == 1 and rep["offroad_events"] == 0
-    assert rep["cte_mean"] < 0.1 and rep["time_s"] < 70  # 61.0 s at the time of writing
+    assert rep["cte_mean"] < 0.1
 
 
 def test_a_stop_sign_makes_the_car_stop_and_hold():
-    data = generate_map(0, size="small", sign_prob=0.0)
+    data = generate_map(3, size="small", sign_prob=0.0)
     track = Track.from_via(data)
     data["sign_obj_datas"] = [_sign_ahead(track, 30.0, 4)]
     track = Track.from_via(data)
-    # VIA's car takes 12 s to reach the stop (half pedal, then coasting: no brakes), holds 2.5 s and
-    # needs 3 s more to pass the sign, which is when the stop is judged
-    sim = Simulator(track, SimConfig(max_seconds=20))
+    # VIA's car takes about 12 s to reach the stop (half pedal, then coasting: no brakes), holds
+    # 2.5 s and needs 3 s more to pass the sign, which is when the stop is judged
+    sim = Simulator(track, SimConfig(max_seconds=24))
     speeds = []
     with Driver() as driver:
         rep = run_inprocess(sim, driver, lambda s, c, p: speeds.append((s.t, s.vehicle.speed, c.state)))

@@ -32,7 +32,7 @@ _OPEN = np.ones((3, 3), np.uint8)
 @dataclass(frozen=True)
 class RoadEdgesParams:
     x_half_m: float = 14.0  # wide enough to see a side road end (a dead end) from the junction
-    depth_m: float = 14.0  # bird's-eye depth beyond the nearest visible ground
+    depth_m: float = 19.0  # bird's-eye depth beyond the nearest visible ground (to see a road end past a junction)
     px_per_m: float = 8.0
     lab_tol: tuple[float, float, float] = (26.0, 9.0, 9.0)
     shadow_floor: float = 0.35  # shadowed road keeps at least this share of the reference lightness

@@ -254,7 +254,9 @@ def _map_dict(rng, b: _Builder, name: str, sign_prob: float, distractors: float)
     cell_datas = [{"id_inmap": r * cols + c, "tile_id": t, "rot": rot}
                   for (c, r), (t, rot) in sorted(b.tiles.items(), key=lambda kv: (kv[0][1], kv[0][0]))]
     start = _start_cell(rng, b)
-    data = {"map_name": name, "bg_id": int(rng.integers(0, 3)), "map_size": {"x": cols, "y": rows},
+    # grass or brown ground, as VIA's own maps (its third choice, no ground at all, shows a grey
+    # much like the asphalt: see README, limitations)
+    data = {"map_name": name, "bg_id": int(rng.integers(0, 2)), "map_size": {"x": cols, "y": rows},
             "cell_datas": cell_datas, "anchor_offset": {"x": 0.0, "y": 0.0},
             "car_pos": {"x": float(start[0]), "y": float(start[1])}}
     data["sign_obj_datas"] = _place_signs(rng, data, sign_prob)
