@@ -54,6 +54,7 @@ class BehaviourParams:
     instruction_range_m: float = 40.0  # a turn sign applies to a junction within this distance after it
     sign_slack_m: float = 2.0  # a sign placed this much past a junction's far side (misjudged distance) still counts
     dead_memory_m: float = 6.0  # dead-end verdicts are forgotten this far after the last opening seen
+    replan_margin_m: float = 4.0  # a plan may be made again until the car is this close to the junction
 
 
 @dataclass
@@ -74,6 +75,7 @@ class Behaviour:
         self.two_lane = True
         self.decisions: list[dict] = []  # each junction planned: what was seen, what sign, which turn
         self._dead: dict[str, bool] = {}  # dead-end verdicts of the openings ahead (see _remember_dead_ends)
+        self._plan: dict | None = None  # the last junction plan, while it may still be made again
         self.signs: list[SignMemory] = []
         self.path: np.ndarray | None = None  # junction path, odometry frame
         self.turn = ""
@@ -111,6 +113,8 @@ class Behaviour:
         self.two_lane = two_lane
         self.signs = [m for m in self.signs if self._ahead(pose, m) > -self.p.instruction_range_m]
         self._remember_dead_ends(junction, odo_m)
+        if junction is not None and self._reconsider(pose, odo_m):
+            self.path, self.cooldown_until_m = None, -1.0  # plan this junction again, with what is known now
         if self.path is None and junction is not None and odo_m > self.cooldown_until_m:
             self._plan_junction(pose, lane, junction, odo_m)
         if self.path is not None:
@@ -210,6 +214,20 @@ class Behaviour:
         elif odo_m - getattr(self, "_dead_seen_m", -1e9) > self.p.dead_memory_m:
             self._dead = {}
 
+    def _reconsider(self, pose: OdoPose, odo_m: float) -> bool:
+        """Should the last junction plan be made again? Only while the car has not reached the
+        junction yet, and only for news: a turn sign confirmed after a plan made without one, or
+        a dead end found (later, from closer) on the way the plan takes."""
+        plan = self._plan
+        if plan is not None and odo_m > plan["odo_m"] + plan["far_m"]:
+            self._plan, self._dead = None, {}  # past that junction: its verdicts are not the next one's
+            return False
+        if plan is None or odo_m > plan["until_m"]:
+            return False
+        if plan["sign"] is None and self._instruction(pose, plan["far_m"] - (odo_m - plan["odo_m"])) is not None:
+            return True
+        return bool(self._dead.get(plan["turn"]))
+
     def _plan_junction(self, pose: OdoPose, lane: LaneEstimate, j: JunctionView, odo_m: float = 0.0) -> bool:
         exits = self._exits(j)
         if exits is None:
@@ -226,7 +244,9 @@ class Behaviour:
         self.decisions.append({"odo_m": round(odo_m, 1), "exits": sorted(exits), "sign": sign.label if sign else None,
                                "turn": self.turn, "near_m": round(near, 1),
                                "dead": sorted(n for n, d in self._dead.items() if d)})
-        self._dead = {}
+        far = max(o.far_m for o in side)
+        self._plan = {"odo_m": odo_m, "until_m": odo_m + max(near - self.p.replan_margin_m, 0.0), "far_m": far,
+                      "sign": sign.label if sign else None, "turn": self.turn}
         if self.turn == "straight" and not getattr(self, "two_lane", True):
             # a kerbed carriageway's edges carry on across a junction (the far edge stands in
             # for the open one): keep following it, and judge no junction until past this one

@@ -216,6 +216,7 @@ class ScanJunctionParams:
     end_seen_m: float = 1.5  # a side road is a dead end only where ground is seen this far past its end
     bend_look_m: float = 4.0  # ... and no road goes on within this far ahead or behind its rows there
     straight_m: float = 1.5  # road on both edges this far past a junction: it goes on straight
+    in_line_m: float = 0.6  # ... with both edges this close to the lines they ran along before it
     dead_ahead_m: float = 10.0  # the road ending this soon past a junction: straight on is a dead end
 
 
@@ -251,13 +252,28 @@ def view_from_scan(scan, params: ScanJunctionParams | None = None) -> JunctionVi
     opened = [o for o in sides.values() if o is not None]
     if opened:
         far = max(o.far_m for o in opened)
-        past = scan.y[scan.ok_l & scan.ok_r & (scan.y > far)]
+        near = min(o.near_m for o in opened)
+        past = scan.y[_in_line(scan, near, far, p)]
         straight = bool(len(past) and past.max() - far >= p.straight_m)
         if straight:
             dead_ahead = _road_ends(scan, far, p)
             if dead_ahead:
                 straight = False  # the road stops just past the junction: a dead end ahead
     return JunctionView(sides["left"], sides["right"], straight, straight_dead=dead_ahead)
+
+
+def _in_line(scan, near_m: float, far_m: float, p: ScanJunctionParams) -> np.ndarray:
+    """Rows past a junction (y > far_m) whose two edges carry on the lines the edges ran along
+    before it (their last 3 m before near_m): the road goes on straight. A bend's edges do not."""
+    both = scan.ok_l & scan.ok_r
+    before = both & (scan.y < near_m) & (scan.y > near_m - 3.0)
+    out = both & (scan.y > far_m)
+    if before.sum() < 4:
+        return out  # nothing to compare with: the edges being found must do
+    for edge in (scan.edge_l, scan.edge_r):
+        line = np.polyfit(scan.y[before], edge[before], 1)
+        out &= np.abs(edge - np.polyval(line, scan.y)) < p.in_line_m
+    return out
 
 
 def _road_ends(scan, far_m: float, p: ScanJunctionParams) -> bool | None:
