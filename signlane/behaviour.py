@@ -62,6 +62,7 @@ class SignMemory:
     label: str
     pos: np.ndarray  # odometry frame
     done: bool = False
+    epoch: int = 0  # junctions passed when it was last seen: a turn sign is for the next junction after it
 
 
 class Behaviour:
@@ -75,7 +76,9 @@ class Behaviour:
         self.two_lane = True
         self.decisions: list[dict] = []  # each junction planned: what was seen, what sign, which turn
         self._dead: dict[str, bool] = {}  # dead-end verdicts of the openings ahead (see _remember_dead_ends)
+        self._votes: dict[str, list[int]] = {}  # per way: [frames judging it dead, frames judging it not]
         self._plan: dict | None = None  # the last junction plan, while it may still be made again
+        self._epoch = 0  # junctions passed
         self.signs: list[SignMemory] = []
         self.path: np.ndarray | None = None  # junction path, odometry frame
         self.turn = ""
@@ -86,17 +89,19 @@ class Behaviour:
 
     # --- signs -------------------------------------------------------------------------
     def observe_signs(self, seen: list[tuple[str, np.ndarray]]) -> None:
-        """Confirmed signs with positions in the odometry frame: merge into memory by place."""
+        """Confirmed signs with positions in the odometry frame: merge into memory by place (a
+        sign dealt with stays dealt with while it is still in view; a different sign at about
+        the same place, as dead reckoning drifts round a loop, is a new one)."""
         for label, pos in seen:
             if label not in TURN_SIGNS and label != "stop":
                 continue
-            near = [m for m in self.signs if np.hypot(*(m.pos - pos)) < 6.0]
+            near = [m for m in self.signs if np.hypot(*(m.pos - pos)) < 6.0 and (m.label == label or not m.done)]
             if near:
                 m = near[0]
                 if not m.done:
-                    m.pos, m.label = pos, label  # closer views place it better
+                    m.pos, m.label, m.epoch = pos, label, self._epoch  # closer views place it better
             else:
-                self.signs.append(SignMemory(label, np.asarray(pos, float)))
+                self.signs.append(SignMemory(label, np.asarray(pos, float), epoch=self._epoch))
 
     def _ahead(self, pose: OdoPose, m: SignMemory) -> float:
         return float(pose.to_car(m.pos)[0, 1])
@@ -111,7 +116,9 @@ class Behaviour:
         """-> (steering [-1, 1], throttle [0, 1], state). `two_lane`: a painted road driven on its
         right lane (False: a kerbed carriageway driven in its middle)."""
         self.two_lane = two_lane
-        self.signs = [m for m in self.signs if self._ahead(pose, m) > -self.p.instruction_range_m]
+        # forget signs left far behind, and those dealt with once passed (out of view: a memory of
+        # them could only swallow a new sign at the place dead reckoning drifts them to)
+        self.signs = [m for m in self.signs if self._ahead(pose, m) > (-2.0 if m.done else -self.p.instruction_range_m)]
         self._remember_dead_ends(junction, odo_m)
         if junction is not None and self._reconsider(pose, odo_m):
             self.path, self.cooldown_until_m = None, -1.0  # plan this junction again, with what is known now
@@ -193,26 +200,31 @@ class Behaviour:
         """The turn sign for a junction whose side road ends far_m ahead: signs stand before the
         junction they are for, so the one nearest before its far side (a sign beyond it is for
         the next junction, and must not be used up here)."""
-        live = [m for m in self.signs if not m.done and m.label in TURN_SIGNS
+        live = [m for m in self.signs if not m.done and m.label in TURN_SIGNS and m.epoch == self._epoch
                 and -self.p.instruction_range_m < self._ahead(pose, m) < far_m + self.p.sign_slack_m]
         return max(live, key=lambda m: self._ahead(pose, m), default=None)
 
     def _remember_dead_ends(self, j: JunctionView | None, odo_m: float) -> None:
-        """Dead-end verdicts of the openings ahead, kept from the frames that could tell (far
-        enough to see past a side road's end) to the frame that plans the junction (too close
-        to see it), and forgotten once no opening has been seen for a while."""
+        """Dead-end verdicts of the openings ahead (and of the road straight on), counted over the
+        frames that could tell (far enough to see past a side road's end) up to the frame that
+        plans the junction (too close to see it): a way is dead when most verdicts say so, so a
+        single misjudged frame decides nothing. Forgotten once no opening has been seen for a while."""
         seen = False
+        verdicts = []
         for name, o in (("left", None if j is None else j.left), ("right", None if j is None else j.right)):
             if o is not None and o.closed:
                 seen = True
-                if o.dead is not None:
-                    self._dead[name] = o.dead
-        if seen and j.straight_dead is not None:
-            self._dead["straight"] = j.straight_dead
+                verdicts.append((name, o.dead))
         if seen:
+            verdicts.append(("straight", j.straight_dead))
             self._dead_seen_m = odo_m
         elif odo_m - getattr(self, "_dead_seen_m", -1e9) > self.p.dead_memory_m:
-            self._dead = {}
+            self._votes = {}
+        for name, dead in verdicts:
+            if dead is not None:
+                v = self._votes.setdefault(name, [0, 0])
+                v[0 if dead else 1] += 1
+        self._dead = {name: v[0] >= 2 and v[0] > v[1] for name, v in self._votes.items()}
 
     def _reconsider(self, pose: OdoPose, odo_m: float) -> bool:
         """Should the last junction plan be made again? Only while the car has not reached the
@@ -220,7 +232,8 @@ class Behaviour:
         a dead end found (later, from closer) on the way the plan takes."""
         plan = self._plan
         if plan is not None and odo_m > plan["odo_m"] + plan["far_m"]:
-            self._plan, self._dead = None, {}  # past that junction: its verdicts are not the next one's
+            self._plan, self._dead, self._votes = None, {}, {}  # past that junction: its verdicts are not the next one's
+            self._epoch += 1  # and the turn signs seen before it were for it
             return False
         if plan is None or odo_m > plan["until_m"]:
             return False

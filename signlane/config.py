@@ -73,6 +73,10 @@ class DriveConfig:
     coast_decel: float = 0.4
     wheelbase_m: float = 1.957  # VIA's car; for odometry and path following
     sign_size_m: float = 1.25  # sign face height, for the distance to a sign (VIA's: 1.25 m)
+    # a square face seen at angle a is cos(a) as wide as tall: narrower than this, it faces
+    # another road's traffic (0.55: more than about 57 degrees away)
+    sign_min_aspect: float = 0.55
+    sign_max_lateral_m: float = 9.0  # a sign further to the side stands beside another road
     lanes_width: int = 320  # lanes and junctions run on frames scaled to this width (0 = as sent)
 
 
@@ -209,6 +213,8 @@ RANGES: dict[str, Range] = {
     "drive.coast_decel": Range(0.01, 100.0, "m/s^2"),
     "drive.wheelbase_m": Range(0.05, 20.0, "m"),
     "drive.sign_size_m": Range(0.05, 10.0, "m"),
+    "drive.sign_min_aspect": Range(0.0, 1.0, ""),
+    "drive.sign_max_lateral_m": Range(0.5, 100.0, "m"),
     "drive.lanes_width": Range(32, 8192, "px", off=0),
 }
 CHOICES: dict[str, tuple[str, ...]] = {

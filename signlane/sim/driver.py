@@ -30,18 +30,23 @@ from signlane.types import Command, Frame, Perception, SignDetection
 
 
 def sign_positions(confirmed: list[SignDetection], found: tuple[SignDetection, ...], camera, pose: OdoPose,
-                   size_m: float) -> list[tuple[str, np.ndarray]]:
+                   size_m: float, min_aspect: float = 0.0, max_lateral_m: float = float("inf")
+                   ) -> list[tuple[str, np.ndarray]]:
     """This frame's detections of confirmed labels, placed in the odometry frame: distance from
-    the face height in pixels, bearing from the box centre."""
+    the face height in pixels, bearing from the box centre. Not this car's: a face much narrower
+    than it is tall (width < min_aspect x height: turned to another road's traffic) or one
+    standing more than max_lateral_m to the side (beside another road)."""
     labels = {d.label for d in confirmed}
     out = []
     for d in found:
-        if d.label not in labels or d.box[3] < 4:
+        if d.label not in labels or d.box[3] < 4 or d.box[2] < min_aspect * d.box[3]:
             continue
         x, y, w, h = d.box
         dist = camera.focal_px * size_m / h
         bearing = math.atan2(x + w / 2 - camera.width / 2, camera.focal_px)
         car = np.array([[dist * math.sin(bearing), dist * math.cos(bearing)]])
+        if abs(car[0, 0]) > max_lateral_m:
+            continue
         out.append((d.label, pose.to_world(car)[0]))
     return out
 
@@ -193,7 +198,9 @@ class Driver:
             found, confirmed, at = self._worker.latest()
             if at is None:
                 return ()
-        placed = sign_positions(confirmed, found, self.camera, at, self.config.drive.sign_size_m)
+        dc = self.config.drive
+        placed = sign_positions(confirmed, found, self.camera, at, dc.sign_size_m, dc.sign_min_aspect,
+                                dc.sign_max_lateral_m)
         self.behaviour.observe_signs(placed)
         return tuple(found)
 

@@ -21,6 +21,7 @@ TURN_ROT = {frozenset("SW"): 0, frozenset("ES"): 90, frozenset("NE"): 180, froze
 TEE_ROT = {"W": 0, "S": 90, "E": 180, "N": 270}  # keyed by the side without road
 SIGN_IDS = {"left": 0, "no_left": 1, "right": 2, "no_right": 3, "stop": 4, "straight": 5}
 VIA_M = 4.0  # signs are placed in VIA's metres (cells of 4 m), beside VIA's 4 m carriageway
+SIGN_SIGHT_M = 10.0  # straight road before a junction sign, so it is in view long enough to be read
 ROAD_HALF_M, KERB_M = 2.0, 0.18
 
 
@@ -295,12 +296,27 @@ def _place_signs(rng: np.random.Generator, data: dict, prob: float) -> list[dict
                 options += ["no_" + t for t in ("left", "right") if t in turns and len(turns) > 1]
                 options += ["no_" + t for t in dead if t in ("left", "right")]
                 label = options[int(rng.integers(len(options)))]
-                signs.append(_sign_before(track, tile, entry, label, float(rng.uniform(1.0, 7.0)),
-                                          float(rng.uniform(1.6, 4.5))))
+                back = float(rng.uniform(1.0, 6.0))
+                if _straight_before(track, tile, entry) >= back + SIGN_SIGHT_M:
+                    signs.append(_sign_before(track, tile, entry, label, back, float(rng.uniform(1.6, 4.5))))
         elif tile.tile_id == 0 and rng.random() < 0.03:
             entry = tile.ports[int(rng.integers(2))]
             signs.append(_sign_before(track, tile, entry, "stop", 0.0, float(rng.uniform(1.6, 4.5))))
     return signs
+
+
+def _straight_before(track, tile, entry) -> float:
+    """Metres of straight road leading to a tile's open end (where a sign before it can be seen
+    from far enough: a sign beside a bend is out of the camera's view until too late)."""
+    metres, port = 0.0, entry
+    for _ in range(20):
+        nxt = track.next_tile(tile, port)
+        if nxt is None or nxt[0].tile_id != 0:
+            break
+        tile, back_port = nxt
+        metres += track.cell_m
+        port = next(p for p in tile.ports if p != back_port)
+    return metres
 
 
 def _sign_before(track, tile, entry, label: str, back_m: float, beside_m: float) -> dict:
