@@ -67,14 +67,14 @@ def write_video(out: Path, n: int, fps: float) -> Path:
 
 def generate_drive(out: str | Path, n: int, seed: int, width: int = 640, height: int = 480, fps: float = 20,
                    resume: bool = False, preview: bool = False, speed_mps: float = 8.0, effects: str = "clean",
-                   workers: int = 1) -> dict:
+                   workers: int = 1, style: str = "via") -> dict:
     """Write `n` consecutive frames of a drive at `speed_mps` along one seeded track to `out`
     (layout in the module docstring) and return the manifest. Raises DatasetError if `out` is
     not empty and is not this dataset or, without `resume`, holds an unfinished run."""
     if n < 1 or fps <= 0:
         raise ValueError(f"need n >= 1 and fps > 0 (got {n}, {fps})")
     out = Path(out)
-    sampler = SamplerConfig(width=width, height=height, effects=effects)
+    sampler = SamplerConfig(width=width, height=height, effects=effects, style=style)
     config = {"n": int(n), "seed": int(seed), "fps": float(fps), "speed_mps": float(speed_mps),
               "sampler": asdict(sampler), "jpeg_quality": JPEG_QUALITY,
               "steering": {"k_offset": K_OFFSET, "k_heading": K_HEADING, "k_curv": K_CURV}, "video": "mp4v"}

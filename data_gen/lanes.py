@@ -121,7 +121,7 @@ def lanes_config(n: int, seed: int, sampler: SamplerConfig, drivable: bool) -> d
 
 def generate_lanes(out: str | Path, n: int, seed: int, width: int = 320, height: int = 240, workers: int = 1,
                    resume: bool = False, preview: bool = False, effects: str = "mixed", randomise: bool = True,
-                   drivable: bool = False, preset: str = "default") -> dict:
+                   drivable: bool = False, preset: str = "default", style: str = "painted") -> dict:
     """Write a lane dataset of `n` frames to `out` (layout in the module docstring); return its
     manifest. Frame i depends only on (seed, i), so `workers` never changes the bytes written.
     preset 'heavy' replaces `effects` with the sampler's HEAVY randomisation (night, rain, strong
@@ -134,7 +134,7 @@ def generate_lanes(out: str | Path, n: int, seed: int, width: int = 320, height:
     if preset not in ("default", "heavy"):
         raise ValueError(f"preset must be 'default' or 'heavy', not {preset!r}")
     extra = dict(HEAVY) if preset == "heavy" else {"effects": effects}
-    sampler = SamplerConfig(width=width, height=height, randomise=randomise, **extra)
+    sampler = SamplerConfig(width=width, height=height, randomise=randomise, style=style, **extra)
     config = lanes_config(n, seed, sampler, drivable)
     manifest = prepare_output(out, "lanes", config, resume)
     if manifest is None:

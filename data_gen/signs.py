@@ -137,7 +137,8 @@ def signs_config(n: int, seed: int, crop: int, unknown_fraction: float, frames: 
 
 
 def generate_signs(out: str | Path, n: int, seed: int, crop: int = 48, workers: int = 1, resume: bool = False,
-                   preview: bool = False, unknown_fraction: float = 0.3, frames: int | None = None) -> dict:
+                   preview: bool = False, unknown_fraction: float = 0.3, frames: int | None = None,
+                   style: str = "painted") -> dict:
     """Write about `n` sign crops (`class_targets`; more where frames alone give more) to `out`
     in ImageFolder layout and return the manifest, whose `counts` holds the crops per class.
     `frames` (default n // 4) rendered frames supply the real crops. Raises DatasetError if
@@ -148,7 +149,7 @@ def generate_signs(out: str | Path, n: int, seed: int, crop: int = 48, workers: 
     out = Path(out)
     frames = max(1, n // 4) if frames is None else int(frames)
     sampler = SamplerConfig(width=FRAME_SIZE[0], height=FRAME_SIZE[1], effects="mixed", randomise=True,
-                            focus="signs")
+                            focus="signs", style=style)
     config = signs_config(n, seed, crop, unknown_fraction, frames, sampler)
     manifest = prepare_output(out, "signs", config, resume)
     if manifest is None:

@@ -237,7 +237,7 @@ def view_from_scan(scan, params: ScanJunctionParams | None = None) -> JunctionVi
         beyond = sgn * (run - edge)
         view = sgn * (seen - edge)  # how far past the edge the ground is in view
         open_rows = np.flatnonzero(~ok & (beyond > p.min_gap_m) & (view > 0.5))
-        found[side] = _opening(scan, open_rows, beyond, view, ok, p)
+        found[side] = _opening(scan, open_rows, beyond, view, ok, p, sgn)
     ends = scan.stop == "lost"
     both = found["left"] is not None and found["right"] is not None
     sides = {}
@@ -276,6 +276,21 @@ def _in_line(scan, near_m: float, far_m: float, p: ScanJunctionParams) -> np.nda
     return out
 
 
+def _verge_colour(scan, near_m: float) -> np.ndarray | None:
+    """Median Lab colour of the ground just beside the carriageway (0.4-1.4 m past its edges)
+    on the rows before an opening, or None where there is not enough of it."""
+    rows = np.flatnonzero(scan.ok_l & scan.ok_r & (scan.y < near_m - 0.5))
+    if len(rows) < 4:
+        return None
+    samples = []
+    for i in rows[:: max(1, len(rows) // 12)]:
+        for x0, x1 in ((scan.edge_l[i] - 1.4, scan.edge_l[i] - 0.4), (scan.edge_r[i] + 0.4, scan.edge_r[i] + 1.4)):
+            _, vis, lab = scan.region(x0, x1, scan.y[i] - 0.05, scan.y[i] + 0.05, lab=True)
+            samples.append(lab[vis])
+    px = np.concatenate(samples) if samples else np.zeros((0, 3))
+    return np.median(px, axis=0) if len(px) >= 10 else None
+
+
 def _road_ends(scan, far_m: float, p: ScanJunctionParams) -> bool | None:
     """Does the road straight on end soon past a junction (ground ahead of its last row and to
     either side of it, not a bend)? None when the scan ran out of view instead."""
@@ -293,7 +308,7 @@ def _road_ends(scan, far_m: float, p: ScanJunctionParams) -> bool | None:
 
 
 def _opening(scan, rows: np.ndarray, beyond: np.ndarray, view: np.ndarray, ok: np.ndarray,
-             p: ScanJunctionParams):
+             p: ScanJunctionParams, sgn: float):
     """(near, far, resumed, dead) of the nearest group of open rows long enough, or None."""
     if len(rows) == 0:
         return None
@@ -304,13 +319,14 @@ def _opening(scan, rows: np.ndarray, beyond: np.ndarray, view: np.ndarray, ok: n
     group = rows[: end + 1]
     near, far = float(scan.y[group[0]]), float(scan.y[group[-1]])
     if far - near < p.min_open_m and group[-1] < len(scan.y) - 1:
-        return None if end + 1 >= len(rows) else _opening(scan, rows[end + 1:], beyond, view, ok, p)
+        return None if end + 1 >= len(rows) else _opening(scan, rows[end + 1:], beyond, view, ok, p, sgn)
     after = np.flatnonzero(ok[group[-1] + 1:])
     resumed = bool(len(after) and scan.y[group[-1] + 1 + after[0]] - far <= p.resume_m)
-    return near, far, resumed, _dead_end(scan, group, beyond, view, p)
+    return near, far, resumed, _dead_end(scan, group, beyond, view, p, sgn)
 
 
-def _dead_end(scan, group: np.ndarray, beyond: np.ndarray, view: np.ndarray, p: ScanJunctionParams) -> bool | None:
+def _dead_end(scan, group: np.ndarray, beyond: np.ndarray, view: np.ndarray, p: ScanJunctionParams,
+              sgn: float) -> bool | None:
     """Does the side road of an opening visibly end? True when its rows' road stops well inside
     the view (ground seen beyond its end) and no road goes on from there ahead of or behind the
     side road's own rows (a bend just past the junction would); False when it is seen to go on;
@@ -322,16 +338,22 @@ def _dead_end(scan, group: np.ndarray, beyond: np.ndarray, view: np.ndarray, p: 
     if seen.sum() < max(3, 0.5 * len(group)):
         return None
     e = float(np.median(end[seen]))
-    sgn = 1.0 if scan.run_r[group[0]] - scan.edge_r[group[0]] > 0 else -1.0
     edge = float(np.median((scan.edge_r if sgn > 0 else scan.edge_l)[group]))
     x_end = edge + sgn * e
     near, far = float(scan.y[group[0]]), float(scan.y[group[-1]])
-    # beyond the end, along the side road's rows: ground, not road
-    road, vis = scan.region(x_end + sgn * 0.5, x_end + sgn * p.end_seen_m, near, far)
+    # beyond the end, along the side road's rows: the verge's own ground (not road, and not
+    # something standing in the way, such as a barrier beside the road the car is on)
+    road, vis, lab = scan.region(x_end + sgn * 0.5, x_end + sgn * p.end_seen_m, near, far, lab=True)
     if vis.sum() < 10:
         return None
     if road[vis].mean() > 0.2:
         return False
+    verge = _verge_colour(scan, near)
+    if verge is None:
+        return None
+    d = np.abs(lab[vis] - verge)
+    if ((d[:, 0] < 30) & (d[:, 1] < 12) & (d[:, 2] < 12)).mean() < 0.6:
+        return None  # not the verge: what ends the road there is not seen
     # around the end, ahead of and behind the side road's rows: no road carrying on
     k = scan.bev.px_per_m[0] * scan.bev.px_per_m[1]
     for y0, y1 in ((far + 0.6, far + p.bend_look_m), (near - p.bend_look_m, near - 0.6)):

@@ -21,6 +21,10 @@ def add_gen(sub) -> None:
     common.add_argument("--seed", type=int, default=0, help="dataset seed (default 0)")
     common.add_argument("--resume", action="store_true", help="complete an interrupted run in --out")
     common.add_argument("--preview", action="store_true", help="also write contact sheets (preview*.png)")
+    common.add_argument("--style", choices=["painted", "via", "mixed"],
+                        help="road style of the tracks: painted lanes, VIA's kerbed carriageway (no paint: its "
+                             "marking masks are empty), or mixed (half each, per track); default painted for "
+                             "lanes and signs, via for drive")
     lanes = kinds.add_parser("lanes", parents=[common], help="frames + lane-marking masks + labels.jsonl",
                              description="Frames with exact lane-marking masks and labels (images/, masks/, "
                                          "labels.jsonl, manifest.json).")
@@ -44,7 +48,7 @@ def add_gen(sub) -> None:
                              description="Consecutive frames along one seeded track, in the lanes layout, "
                                          "plus drive.mp4.")
     drive.add_argument("--size", type=size_arg, default=(640, 480), help="frame size WxH (default 640x480)")
-    drive.add_argument("--fps", type=float, default=20.0, help="frames per second of the drive (default 20)")
+    drive.add_argument("--fps", type=float, default=30.0, help="frames per second of the drive (default 30, as VIA)")
     p.set_defaults(func=_run_gen)
 
 
@@ -62,15 +66,15 @@ def _gen(args) -> int:
         m = generate_lanes(args.out, args.n, args.seed, width=args.size[0], height=args.size[1],
                            workers=args.workers, resume=args.resume, preview=args.preview,
                            effects=args.effects, randomise=args.randomise, drivable=args.drivable,
-                           preset=args.preset)
+                           preset=args.preset, style=args.style or "painted")
     elif args.kind == "signs":
         from data_gen.signs import generate_signs
         m = generate_signs(args.out, args.n, args.seed, crop=args.crop, workers=args.workers,
-                           resume=args.resume, preview=args.preview)
+                           resume=args.resume, preview=args.preview, style=args.style or "painted")
     else:
         from data_gen.drive import generate_drive
         m = generate_drive(args.out, args.n, args.seed, width=args.size[0], height=args.size[1], fps=args.fps,
-                           resume=args.resume, preview=args.preview)
+                           resume=args.resume, preview=args.preview, style=args.style or "via")
     print(json.dumps({"out": str(args.out), "counts": m.get("counts")}))
     return 0
 

@@ -82,11 +82,11 @@ def _bev(cam: Camera, p: RoadEdgesParams, state: RoadEdgesState) -> BirdsEye:
 
 
 def road_mask(bev_bgr: np.ndarray, visible: np.ndarray, p: RoadEdgesParams,
-              known: tuple[float, float, float] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(road, bright, reference Lab) of a bird's-eye BGR image: masks of road-coloured and of
-    bright-and-grey pixels. The reference is the patch just ahead of the car, unless that patch
-    looks nothing like the road colour `known` from earlier frames (the car is over a kerb or
-    off the road): then the known colour."""
+              known: tuple[float, float, float] | None = None):
+    """(road, bright, reference Lab, Lab image) of a bird's-eye BGR image: masks of
+    road-coloured and of bright-and-grey pixels. The reference is the patch just ahead of the car,
+    unless that patch looks nothing like the road colour `known` from earlier frames (the car is
+    over a kerb or off the road): then the known colour."""
     lab = cv2.cvtColor(bev_bgr, cv2.COLOR_BGR2LAB).astype(np.int16)
     h, w = lab.shape[:2]
     ref = np.median(lab[h - max(2, int(1.2 * p.px_per_m)):, w // 2 - int(0.8 * p.px_per_m): w // 2 + int(0.8 * p.px_per_m)]
@@ -99,7 +99,7 @@ def road_mask(bev_bgr: np.ndarray, visible: np.ndarray, p: RoadEdgesParams,
     road = light & (d[..., 1] < p.lab_tol[1]) & (d[..., 2] < p.lab_tol[2])
     bright = (lab[..., 0] > ref[0] + p.bright_l) & (np.abs(lab[..., 1] - 128) < 16) & (np.abs(lab[..., 2] - 128) < 16)
     road = cv2.morphologyEx(((road | bright) & visible).astype(np.uint8), cv2.MORPH_OPEN, _OPEN) > 0
-    return road, bright & visible, ref
+    return road, bright & visible, ref, lab
 
 
 @dataclass(frozen=True)
@@ -126,15 +126,18 @@ class RoadScan:
     road: np.ndarray | None = None  # the bird's-eye road mask scanned (bool), for junction checks
     visible: np.ndarray | None = None  # where the bird's-eye view sees ground (bool)
     bev: BirdsEye | None = None
+    lab: np.ndarray | None = None  # the bird's-eye view in Lab (int16), for colour checks
 
-    def region(self, x0: float, x1: float, y0: float, y1: float) -> tuple[np.ndarray, np.ndarray]:
+    def region(self, x0: float, x1: float, y0: float, y1: float, lab: bool = False):
         """(road, visible) bool pixels of the bird's-eye view inside ground x in [x0, x1] and
-        y in [y0, y1] metres (empty arrays when outside)."""
+        y in [y0, y1] metres (empty arrays when outside); with lab=True also their Lab colours."""
         b = self.bev
         (u0, v1), (u1, v0) = b.ground_to_bev(np.array([[min(x0, x1), min(y0, y1)], [max(x0, x1), max(y0, y1)]]))
         h, w = self.road.shape
         u0, u1 = int(np.clip(np.floor(u0), 0, w)), int(np.clip(np.ceil(u1), 0, w))
         v0, v1 = int(np.clip(np.floor(v0), 0, h)), int(np.clip(np.ceil(v1), 0, h))
+        if lab:
+            return self.road[v0:v1, u0:u1], self.visible[v0:v1, u0:u1], self.lab[v0:v1, u0:u1]
         return self.road[v0:v1, u0:u1], self.visible[v0:v1, u0:u1]
 
 
@@ -209,8 +212,8 @@ def carriageway(image_bgr: np.ndarray, cam: Camera, p: RoadEdgesParams, state: R
     h, w = image_bgr.shape[:2]
     bev = _bev(cam, p, state)
     visible = bev.warp(np.full((h, w), 255, np.uint8), cv2.INTER_NEAREST) > 0
-    road, bright, ref = road_mask(bev.warp(image_bgr[:, :, :3]), visible, p, state.road_lab)
-    scan = scan_edges(road, visible, bev, p, state.width_m or p.width_m)
+    road, bright, ref, lab_img = road_mask(bev.warp(image_bgr[:, :, :3]), visible, p, state.road_lab)
+    scan = replace(scan_edges(road, visible, bev, p, state.width_m or p.width_m), lab=lab_img)
     left = _fit(np.column_stack([scan.run_l, scan.y])[scan.ok_l], p)
     right = _fit(np.column_stack([scan.run_r, scan.y])[scan.ok_r], p)
     good = left is not None and right is not None and p.min_width_m < scan.width_m < p.max_width_m

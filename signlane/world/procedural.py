@@ -21,7 +21,13 @@ TURN_ROT = {frozenset("SW"): 0, frozenset("ES"): 90, frozenset("NE"): 180, froze
 TEE_ROT = {"W": 0, "S": 90, "E": 180, "N": 270}  # keyed by the side without road
 SIGN_IDS = {"left": 0, "no_left": 1, "right": 2, "no_right": 3, "stop": 4, "straight": 5}
 VIA_M = 4.0  # signs are placed in VIA's metres (cells of 4 m), beside VIA's 4 m carriageway
-SIGN_SIGHT_M = 10.0  # straight road before a junction sign, so it is in view long enough to be read
+
+
+def sign_sight_m(beside_m: float) -> float:
+    """Straight road a sign needs before it to be read: VIA's camera (75 degrees across) sees a
+    sign beside_m beyond the asphalt from about 1.3 times its distance to the side ahead, and a
+    few metres more of it give the classifier its frames."""
+    return 8.0 + 1.3 * (ROAD_HALF_M + KERB_M + beside_m)
 ROAD_HALF_M, KERB_M = 2.0, 0.18
 
 
@@ -267,12 +273,15 @@ def _map_dict(rng, b: _Builder, name: str, sign_prob: float, distractors: float)
 
 
 def _start_cell(rng: np.random.Generator, b: _Builder) -> tuple[int, int]:
-    """A north-south straight with two more straights north of it (room to see what comes), on
-    the network's loops (not on a dead-end stub), for VIA's start facing north."""
+    """A north-south straight with straights north of it (room to see what comes and read its
+    signs: four more where there are, else two), on the network's loops (not on a dead-end stub),
+    for VIA's start facing north."""
     def straight_ns(c):
         return b.tiles.get(c) == (0, 0)
-    ok = [c for c in sorted(b.tiles) if straight_ns(c) and straight_ns((c[0], c[1] + 1)) and straight_ns((c[0], c[1] + 2))
-          and straight_ns((c[0], c[1] - 1))]
+
+    def run(c, k):
+        return all(straight_ns((c[0], c[1] + i)) for i in range(-1, k + 1))
+    ok = [c for c in sorted(b.tiles) if run(c, 4)] or [c for c in sorted(b.tiles) if run(c, 2)]
     north = ok or sorted(c for c in b.tiles if straight_ns(c))
     pool = north or sorted(c for c, (t, _) in b.tiles.items() if t == 0)
     return pool[int(rng.integers(len(pool)))]
@@ -296,9 +305,9 @@ def _place_signs(rng: np.random.Generator, data: dict, prob: float) -> list[dict
                 options += ["no_" + t for t in ("left", "right") if t in turns and len(turns) > 1]
                 options += ["no_" + t for t in dead if t in ("left", "right")]
                 label = options[int(rng.integers(len(options)))]
-                back = float(rng.uniform(1.0, 6.0))
-                if _straight_before(track, tile, entry) >= back + SIGN_SIGHT_M:
-                    signs.append(_sign_before(track, tile, entry, label, back, float(rng.uniform(1.6, 4.5))))
+                back, beside = float(rng.uniform(1.0, 6.0)), float(rng.uniform(1.6, 4.5))
+                if _straight_before(track, tile, entry) >= back + sign_sight_m(beside):
+                    signs.append(_sign_before(track, tile, entry, label, back, beside))
         elif tile.tile_id == 0 and rng.random() < 0.03:
             entry = tile.ports[int(rng.integers(2))]
             signs.append(_sign_before(track, tile, entry, "stop", 0.0, float(rng.uniform(1.6, 4.5))))
