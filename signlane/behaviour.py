@@ -55,6 +55,8 @@ class BehaviourParams:
     sign_slack_m: float = 2.0  # a sign placed this much past a junction's far side (misjudged distance) still counts
     dead_memory_m: float = 6.0  # dead-end verdicts are forgotten this far after the last opening seen
     replan_margin_m: float = 4.0  # a plan may be made again until the car is this close to the junction
+    aligned_rad: float = 0.3  # a junction is planned once the car points along its road within this ...
+    commit_late_m: float = 6.0  # ... or, askew, once its side road is this close
 
 
 @dataclass
@@ -249,6 +251,8 @@ class Behaviour:
         near = min(o.near_m for o in side)
         if near > self.p.commit_near_m:
             return False
+        if lane.found and abs(lane.heading) > self.p.aligned_rad and near > self.p.commit_late_m:
+            return False  # still turning out of a bend (or a lane shift): what it sees of the junction is askew
         y_c = float(np.mean([o.centre_m for o in side]))
         sign = self._instruction(pose, max(o.far_m for o in side))
         self.turn = self.choose(exits, sign.label if sign else None)
@@ -266,7 +270,10 @@ class Behaviour:
             self.cooldown_until_m = odo_m + max(o.far_m for o in side) + 1.0
             return False
         lateral = -lane.offset * (lane.lane_width_m or self.p.lane_width_m) if lane.found else 0.0
-        self.path = pose.to_world(_junction_path(self.turn, y_c, lateral, self.p, getattr(self, "two_lane", True)))
+        path = _junction_path(self.turn, y_c, lateral, self.p, getattr(self, "two_lane", True))
+        if lane.found:  # laid along the road, not along the car (heading > 0: the car points right of it)
+            path = _rotate(path, lane.heading)
+        self.path = pose.to_world(path)
         self.follow.reset()
         return True
 
@@ -284,6 +291,13 @@ class Behaviour:
         steering = self.follow.steer_to(float(car[i, 0]), float(car[i, 1]))
         v = self.p.junction_speed if self.turn != "straight" else self.p.approach_speed
         return steering, v / self.p.max_speed, f"junction-{self.turn}"
+
+
+def _rotate(path: np.ndarray, heading: float) -> np.ndarray:
+    """Car-frame points of a path laid out along a road the car points `heading` radians right
+    of (the road's axes turned left by that angle, about the car)."""
+    c, s = math.cos(heading), math.sin(heading)
+    return np.column_stack([c * path[:, 0] - s * path[:, 1], s * path[:, 0] + c * path[:, 1]])
 
 
 def _junction_path(turn: str, y_c: float, lateral_m: float, p: BehaviourParams, two_lane: bool = True) -> np.ndarray:

@@ -12,7 +12,7 @@ Ground frame: metres, x right of the car, y ahead, with the car on its lane's ce
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
@@ -262,6 +262,16 @@ def view_from_scan(scan, params: ScanJunctionParams | None = None) -> JunctionVi
     return JunctionView(sides["left"], sides["right"], straight, straight_dead=dead_ahead)
 
 
+def with_road_end(view: JunctionView, scan, params: ScanJunctionParams | None = None) -> JunctionView:
+    """A painted road's junction view with the road-edge scan's word on whether the road straight
+    on ends just past the junction (a dead end the edge-line detector cannot see)."""
+    opened = [o for o in (view.left, view.right) if o is not None and o.closed]
+    if not opened or scan is None or len(scan.y) < 4:
+        return view
+    dead = _road_ends(scan, max(o.far_m for o in opened), params or ScanJunctionParams())
+    return replace(view, straight_dead=dead, straight=bool(view.straight) and not dead)
+
+
 def _in_line(scan, near_m: float, far_m: float, p: ScanJunctionParams) -> np.ndarray:
     """Rows past a junction (y > far_m) whose two edges carry on the lines the edges ran along
     before it (their last 3 m before near_m): the road goes on straight. A bend's edges do not."""
@@ -322,6 +332,13 @@ def _opening(scan, rows: np.ndarray, beyond: np.ndarray, view: np.ndarray, ok: n
         return None if end + 1 >= len(rows) else _opening(scan, rows[end + 1:], beyond, view, ok, p, sgn)
     after = np.flatnonzero(ok[group[-1] + 1:])
     resumed = bool(len(after) and scan.y[group[-1] + 1 + after[0]] - far <= p.resume_m)
+    if resumed:  # and back in line with the edge before the opening: a side road, not a bend
+        edge = scan.edge_r if sgn > 0 else scan.edge_l
+        before = ok & (scan.y < near) & (scan.y > near - 3.0)
+        if before.sum() >= 4:
+            line = np.polyfit(scan.y[before], edge[before], 1)
+            i = group[-1] + 1 + after[0]
+            resumed = abs(float(edge[i] - np.polyval(line, scan.y[i]))) < p.in_line_m
     return near, far, resumed, _dead_end(scan, group, beyond, view, p, sgn)
 
 

@@ -19,6 +19,7 @@ from signlane.world.procedural import generate_map
 from signlane.world.render import Renderer
 from signlane.world.route import Pose, Route, random_policy
 from signlane.world.scene import build_scene
+from signlane.world.maps import load_track
 from signlane.world.track import RoadStyle, Track
 
 
@@ -285,9 +286,7 @@ def _sign_ahead(track: Track, s_m: float, label_id: int) -> dict:
 
 @pytest.mark.parametrize("style", ["via", "painted"])
 def test_a_lockstep_drive_completes_a_lap_of_a_small_procedural_track(style):
-    data = generate_map(3, size="small")
-    sim = Simulator(Track.from_via(data, style=RoadStyle.named(style)), SimConfig(width=320, height=240,
-                                                                                  max_seconds=150))
+    sim = Simulator(load_track("random", style, 3, size="small"), SimConfig(width=320, height=240, max_seconds=150))
     with Driver(Config.load(None, ["signs.enabled=false"])) as driver:
         rep = run_inprocess(sim, driver)
     assert rep["laps"] == 1 and rep["offroad_events"] == 0

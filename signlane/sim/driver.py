@@ -22,7 +22,7 @@ import numpy as np
 from signlane import lanes
 from signlane.behaviour import Behaviour, BehaviourParams
 from signlane.config import Config
-from signlane.junction import JunctionDetector, view_from_scan
+from signlane.junction import JunctionDetector, view_from_scan, with_road_end
 from signlane.lanes.auto import road_state
 from signlane.odometry import Odometry, OdoPose
 from signlane.sim.protocol import Telemetry
@@ -160,10 +160,12 @@ class Driver:
         timing["lanes"] = (t1 - t0) * 1e3
         road = road_state(self.lane.state)
         two_lane = road is None or road.two_lane
-        if two_lane:  # painted lanes: openings where the edge line is missing (signlane/junction.py)
-            view = self.junctions.detect(small, lane.lane_width_m or None)
-        else:  # a kerbed carriageway: openings where its edges jump away
+        if not two_lane:  # a kerbed carriageway: openings where its edges jump away
             view = view_from_scan(road.scan)
+        else:  # painted lanes: openings where the edge line is missing; a road ending ahead from the scan
+            view = self.junctions.detect(small, lane.lane_width_m or None)
+            if road is not None and road.scan is not None:
+                view = with_road_end(view, road.scan)
         t2 = time.perf_counter()
         timing["junction"] = (t2 - t1) * 1e3
         signs = self._signs(image, pose)

@@ -28,5 +28,8 @@ def load_track(spec: str | Path, style: str = "via", seed: int = 0, size: str = 
     if str(spec) in BUNDLED_MAPS:
         return bundled_map(str(spec), style)
     if str(spec) == "random":
-        return Track.from_via(generate_map(seed, size=size), style=road, source=f"random seed {seed}")
+        # painted-road tracks have no dead ends: the painted-lane driver cannot see one coming
+        # on cells three times VIA's (README, limitations)
+        dead = {} if road.kind == "via" else {"dead_end_prob": 0.0}
+        return Track.from_via(generate_map(seed, size=size, **dead), style=road, source=f"random seed {seed}")
     return Track.load(spec, style=road)
