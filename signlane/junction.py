@@ -239,6 +239,14 @@ def view_from_scan(scan, params: ScanJunctionParams | None = None) -> JunctionVi
         open_rows = np.flatnonzero(~ok & (beyond > p.min_gap_m) & (view > 0.5))
         found[side] = _opening(scan, open_rows, beyond, view, ok, p, sgn)
     ends = scan.stop == "lost"
+    if found["left"] is not None and found["right"] is not None:
+        # openings on the two sides that do not overlap along the road are two junctions: keep
+        # the nearer one (the far one is judged when it is next)
+        (ln, lf), (rn, rf) = found["left"][:2], found["right"][:2]
+        if rn > lf + p.row_gap_m:
+            found["right"] = None
+        elif ln > rf + p.row_gap_m:
+            found["left"] = None
     both = found["left"] is not None and found["right"] is not None
     sides = {}
     for side, o in found.items():
