@@ -35,11 +35,15 @@ def sign_positions(confirmed: list[SignDetection], found: tuple[SignDetection, .
     """This frame's detections of confirmed labels, placed in the odometry frame: distance from
     the face height in pixels, bearing from the box centre. Not this car's: a face much narrower
     than it is tall (width < min_aspect x height: turned to another road's traffic) or one
-    standing more than max_lateral_m to the side (beside another road)."""
+    standing more than max_lateral_m to the side (beside another road). A box cut by the frame's
+    edge places nothing: the part in view of an octagon or disc is shorter than the face, which
+    would put the sign metres too far."""
     labels = {d.label for d in confirmed}
     out = []
     for d in found:
         if d.label not in labels or d.box[3] < 4 or d.box[2] < min_aspect * d.box[3]:
+            continue
+        if d.box[0] <= 1 or d.box[1] <= 1 or d.box[0] + d.box[2] >= camera.width - 1 or d.box[1] + d.box[3] >= camera.height - 1:
             continue
         x, y, w, h = d.box
         dist = camera.focal_px * size_m / h

@@ -310,8 +310,17 @@ def _place_signs(rng: np.random.Generator, data: dict, prob: float) -> list[dict
                     signs.append(_sign_before(track, tile, entry, label, back, beside))
         elif tile.tile_id == 0 and rng.random() < 0.03:
             entry = tile.ports[int(rng.integers(2))]
-            signs.append(_sign_before(track, tile, entry, "stop", 0.0, float(rng.uniform(1.6, 4.5))))
+            beside = float(rng.uniform(1.6, 4.5))
+            if _straight_before(track, tile, entry) >= sign_sight_m(beside) and not _near_start(track, tile):
+                signs.append(_sign_before(track, tile, entry, "stop", 0.0, beside))
     return signs
+
+
+def _near_start(track, tile, cells: int = 7) -> bool:
+    """Is a tile within `cells` of the start, along its column? (A car starting at rest must not
+    meet a stop sign before it can see one.)"""
+    c, r = track.start_cell
+    return tile.col == c and -1 <= tile.row - r <= cells
 
 
 def _straight_before(track, tile, entry) -> float:
