@@ -41,6 +41,7 @@ class BehaviourParams:
     stop_hold_s: float = 2.0
     stop_margin_s: float = 0.5  # held a little longer than required
     wheelbase_m: float = 1.8
+    camera_forward_m: float = 0.0  # the camera's ground point ahead of the rear axle; poses are the camera's
     right_radius_m: float = 5.0  # turns on a painted two-lane road (right-hand traffic)
     left_radius_m: float = 7.6
     lane_width_m: float = 3.2
@@ -70,7 +71,7 @@ class SignMemory:
 class Behaviour:
     def __init__(self, params: BehaviourParams | None = None):
         self.p = params or BehaviourParams()
-        self.follow = PurePursuit(wheelbase_m=self.p.wheelbase_m)
+        self.follow = PurePursuit(wheelbase_m=self.p.wheelbase_m, camera_forward_m=self.p.camera_forward_m)
         self.reset()
 
     def reset(self) -> None:

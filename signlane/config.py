@@ -24,6 +24,10 @@ class CameraConfig:
     height_m: float = 2.9
     pitch_deg: float = 11.8
     roll_deg: float = 0.0
+    # where the camera stands ahead of the car's rear axle (what the car steers about): what the
+    # camera measures is this much further from the axle. VIA: 0.1 m ahead of the car's origin,
+    # midway along its 1.957 m wheelbase
+    forward_m: float = 1.08
 
     def camera(self, width: int = 320, height: int = 240) -> Camera:
         return Camera(width, height, self.hfov_deg, self.height_m, self.pitch_deg, self.roll_deg)
@@ -202,6 +206,7 @@ RANGES: dict[str, Range] = {
     "camera.height_m": Range(0.05, 50.0, "m"),
     "camera.pitch_deg": Range(-89.0, 89.0, "degrees (positive: down)"),
     "camera.roll_deg": Range(-90.0, 90.0, "degrees"),
+    "camera.forward_m": Range(-5.0, 10.0, "m"),
     "signs.min_score": Range(0.0, 1.0),
     "signs.confirm_n": Range(1, 1000, "frames"),
     "signs.confirm_m": Range(1, 1000, "frames"),

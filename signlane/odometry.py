@@ -25,6 +25,10 @@ class OdoPose:
         rx, ry = fy, -fx  # right of travel
         return np.column_stack([self.x + p[:, 0] * rx + p[:, 1] * fx, self.y + p[:, 0] * ry + p[:, 1] * fy])
 
+    def ahead(self, dist_m: float) -> "OdoPose":
+        """The pose dist_m further along its heading (the camera's ground point, from the axle's)."""
+        return OdoPose(self.x + dist_m * math.cos(self.heading), self.y + dist_m * math.sin(self.heading), self.heading)
+
     def to_car(self, xy: np.ndarray) -> np.ndarray:
         """Odometry-frame points -> this pose's car frame (x right, y ahead), (N, 2)."""
         d = np.asarray(xy, float).reshape(-1, 2) - (self.x, self.y)

@@ -32,8 +32,10 @@ def trained(tmp_path_factory):
         cv2.imwrite(str(photos / f"p{i}.png"), smp.sample(i).image)
     # painted-lane photos from their own camera, not VIA's (the default)
     cam = smp.sample(0).truth.camera
+    # a dashed centre line fills about 2/3 of the windows: 0.6 keeps well-found frames (the
+    # default 0.7 is for solid lines; its calibration is issue "A newcomer's path")
     auto = autolabel_lanes([str(photos)], root / "auto", camera=CameraConfig(cam.hfov_deg, cam.height_m, cam.pitch_deg),
-                           progress=False)
+                           min_confidence=0.6, progress=False)
     report = train_lanes([root / "synthetic", root / "auto"], root / "run", epochs=1, batch_size=8, workers=0,
                          quiet=True, eval_frames=8, threads=1)
     onnx_path = root / "lanes.onnx"
@@ -60,7 +62,7 @@ def test_autolabel_keeps_confident_frames_in_the_lane_layout(trained):
     for r in recs:
         mask = cv2.imread(str(out / r["mask"]), cv2.IMREAD_UNCHANGED)
         assert mask.shape == (240, 320) and set(np.unique(mask)) <= {0, 255} and mask.max() == 255
-        assert r["pseudo"]["confidence"] >= 0.7 and len(r["lane"]["left"]) > 1
+        assert r["pseudo"]["confidence"] >= 0.6 and len(r["lane"]["left"]) > 1
     assert (out / "sheet.png").exists() and (out / "manifest.json").exists()
 
 

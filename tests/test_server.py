@@ -16,7 +16,7 @@ from websockets.exceptions import ConnectionClosed
 from websockets.sync.client import connect
 
 from lane_helpers import loop_scene
-from signlane.camera import Camera
+from signlane.camera import via_camera
 from signlane.cli import main as cli_main
 from signlane.config import Config
 from signlane.sim.drive_stats import ErrorLog
@@ -94,7 +94,7 @@ def test_vias_exact_frames_get_text_answers(server, frames):
 
 def test_steering_turns_back_towards_the_lane_centre():
     route, renderer = loop_scene()
-    cam = Camera(width=320, height=240)
+    cam = via_camera(320, 240)  # the camera the server's defaults assume
     with DriveServer(options=ServerOptions(port=0)) as srv:
         for lateral, sign in ((0.9, -1), (-0.9, 1)):  # right of centre -> steer left (negative), and back
             with connect(srv.url) as ws:

@@ -59,9 +59,13 @@ def fit_boundary(points_m: np.ndarray, order: int = 2, weights: np.ndarray | Non
 
 
 def shifted(boundary: Boundary, dx_m: float) -> Boundary:
-    """The same curve moved sideways by dx_m (right positive): the lane-width fallback."""
+    """The same curve moved sideways by dx_m (right positive): the lane-width fallback.
+
+    A width is measured across the lane, so where the seen curve runs aslant (a bend) the
+    sideways shift is the width over the cosine of its angle at its near end."""
     c = boundary.coeffs.copy()
-    c[-1] += dx_m
+    slope = float(np.polyval(np.polyder(c), boundary.y_range[0])) if len(c) > 1 else 0.0
+    c[-1] += dx_m * math.sqrt(1.0 + min(slope * slope, 4.0))
     return Boundary(c, boundary.y_range, 0)
 
 

@@ -125,7 +125,8 @@ class Driver:
         lanes.params_for(cfg_lanes.method, cfg_lanes.variant, **cfg_lanes.overrides())  # fail early on a bad name
         self.behaviour = Behaviour(BehaviourParams(
             max_speed=dc.max_speed, cruise_speed=dc.cruise_speed, approach_speed=dc.approach_speed,
-            stop_hold_s=dc.stop_hold_s, coast_decel=dc.coast_decel, wheelbase_m=dc.wheelbase_m))
+            stop_hold_s=dc.stop_hold_s, coast_decel=dc.coast_decel, wheelbase_m=dc.wheelbase_m,
+            camera_forward_m=self.config.camera.forward_m))
         self.odometry = Odometry(dc.wheelbase_m)
         self.signs = None
         self._worker = None
@@ -157,7 +158,8 @@ class Driver:
         t = telemetry.time if telemetry.time is not None else (time.monotonic() if now is None else now)
         timing: dict[str, float] = {}
         t0 = time.perf_counter()
-        pose = self.odometry.step(t, telemetry.speed_mps, telemetry.wheel_deg)
+        # the camera's ground point: what the camera measures (lanes, junctions, signs) is planned from it
+        pose = self.odometry.step(t, telemetry.speed_mps, telemetry.wheel_deg).ahead(self.config.camera.forward_m)
         small = image if self.scaled == (w, h) else cv2.resize(image, self.scaled, interpolation=cv2.INTER_AREA)
         lane = self.lane(small)
         t1 = time.perf_counter()
