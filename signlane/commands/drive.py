@@ -32,8 +32,9 @@ def add_drive(sub) -> None:
                    help="address to listen on (default 127.0.0.1; 0.0.0.0 exposes the car to the network)")
     p.add_argument("--port", type=int, default=4567, help="port (default 4567, the simulator's; 0 = any free)")
     p.add_argument("--lanes", metavar="METHOD",
-                   help="lane method: canny-scan, sliding-window, color-hough, vector-spline, segnet "
-                        "(default from config)")
+                   help="lane method: auto (default: road-edges on a kerbed carriageway such as VIA's, "
+                        "sliding-window on painted lanes), road-edges, sliding-window, canny-scan, color-hough, "
+                        "vector-spline, segnet")
     p.add_argument("--signs", action=argparse.BooleanOptionalAction, default=None,
                    help="traffic-sign detection (default from config: on)")
     p.add_argument("--sync-signs", action="store_true",

@@ -39,8 +39,9 @@ def add_infer(sub) -> None:
     p.add_argument("--out", type=Path, help="folder for annotated images/videos (and masks)")
     p.add_argument("--json", dest="json_path", metavar="FILE", help="write per-frame JSON lines here ('-' = stdout)")
     p.add_argument("--lanes", metavar="METHOD",
-                   help="lane method: canny-scan, sliding-window, color-hough, vector-spline, segnet (learned; "
-                        "--save-masks then writes its marking mask) (default from config)")
+                   help="lane method: auto (default: road-edges on a kerbed carriageway such as VIA's, "
+                        "sliding-window on painted lanes), road-edges, sliding-window, canny-scan, color-hough, "
+                        "vector-spline, segnet (learned; --save-masks then writes its marking mask)")
     p.add_argument("--save-masks", action="store_true", help="write <stem>_lane.png (0/255) beside each annotated image")
     p.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bars")
     p.add_argument("--max-pixels", type=pixels_arg, default=4096 * 4096, metavar="WxH",

@@ -97,8 +97,13 @@ def road_mask(bev_bgr: np.ndarray, visible: np.ndarray, p: RoadEdgesParams,
     d = np.abs(lab - ref)
     light = (d[..., 0] < p.lab_tol[0]) | ((lab[..., 0] < ref[0]) & (lab[..., 0] > p.shadow_floor * ref[0]))
     road = light & (d[..., 1] < p.lab_tol[1]) & (d[..., 2] < p.lab_tol[2])
-    bright = (lab[..., 0] > ref[0] + p.bright_l) & (np.abs(lab[..., 1] - 128) < 16) & (np.abs(lab[..., 2] - 128) < 16)
-    road = cv2.morphologyEx(((road | bright) & visible).astype(np.uint8), cv2.MORPH_OPEN, _OPEN) > 0
+    grey = (np.abs(lab[..., 1] - 128) < 16) & (np.abs(lab[..., 2] - 128) < 16)
+    bright = (lab[..., 0] > ref[0] + p.bright_l) & grey
+    # paint and kerbs belong to the carriageway, and so does grey asphalt lighter than the patch
+    # ahead by more than the tolerance (a mottled road: else its light blotches are holes that
+    # stop the scan well inside the road)
+    lighter = (lab[..., 0] >= ref[0] + p.lab_tol[0]) & grey
+    road = cv2.morphologyEx(((road | lighter) & visible).astype(np.uint8), cv2.MORPH_OPEN, _OPEN) > 0
     return road, bright & visible, ref, lab
 
 
