@@ -13,9 +13,9 @@ from pathlib import Path
 
 import cv2
 
-from data_gen.common import (DatasetError, atomic_video_path, prepare_output, run_indexed, sample_id,
+from signlane_data.common import (DatasetError, atomic_video_path, prepare_output, run_indexed, sample_id,
                              write_manifest)
-from data_gen.lanes import JPEG_QUALITY, K_CURV, K_HEADING, K_OFFSET, frame_done, merge_labels, write_frame
+from signlane_data.lanes import JPEG_QUALITY, K_CURV, K_HEADING, K_OFFSET, frame_done, merge_labels, write_frame
 from signlane.world.sampling import DriveSampler, SamplerConfig
 
 log = logging.getLogger(__name__)
@@ -90,6 +90,6 @@ def generate_drive(out: str | Path, n: int, seed: int, width: int = 640, height:
         manifest = write_manifest(out, "drive", seed, counts, config)
         log.info("%s: wrote a %d-frame drive and %s", out, n, VIDEO)
     if preview:
-        from data_gen.preview import write_lane_preview
+        from signlane_data.preview import write_lane_preview
         write_lane_preview(out, stride=max(1, n // 32))
     return manifest

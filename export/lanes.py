@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from export.onnx_export import data_hash, export_onnx, run_data_roots
+from signlane_export.onnx_export import data_hash, export_onnx, run_data_roots
 from signlane.lanes.seg_model import CLASSES, DEFAULT_SPEC, TASK
 from signlane.onnx_model import make_metadata
 
@@ -13,8 +13,8 @@ from signlane.onnx_model import make_metadata
 def export_lanes(ckpt: str | Path, out: str | Path, metrics: dict | None = None, tol: float = 1e-4) -> dict:
     """Export a lanes checkpoint; returns a report (parity, size, parameters). Without `metrics`
     the run's report.json val scores go into the metadata."""
-    from train.lane_net import count_parameters
-    from train.lane_task import LaneTask
+    from signlane_train.lane_net import count_parameters
+    from signlane_train.lane_task import LaneTask
     ckpt, out = Path(ckpt), Path(out)
     if not ckpt.is_file():
         raise ValueError(f"{ckpt}: checkpoint not found")

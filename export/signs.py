@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from export.onnx_export import data_hash, export_onnx, quantize_int8, run_data_roots
+from signlane_export.onnx_export import data_hash, export_onnx, quantize_int8, run_data_roots
 from signlane.onnx_model import make_metadata
 from signlane.signs.classifier import DEFAULT_SPEC, TASK, SignClassifier, preprocess_crops
 from signlane.world.art import SIGN_CLASSES
@@ -14,7 +14,7 @@ from signlane.world.art import SIGN_CLASSES
 
 def export_signs(ckpt: str | Path, out: str | Path, int8: bool = False, metrics: dict | None = None) -> dict:
     """Export a sign checkpoint; returns a report (parity, sizes, val accuracy of fp32 and int8)."""
-    from train.sign_task import SignTask
+    from signlane_train.sign_task import SignTask
     ckpt, out = Path(ckpt), Path(out)
     if not ckpt.is_file():
         raise ValueError(f"{ckpt}: checkpoint not found")
@@ -41,7 +41,7 @@ def export_signs(ckpt: str | Path, out: str | Path, int8: bool = False, metrics:
 
 def _val_crops(roots: list[str], spec) -> tuple[list[np.ndarray], np.ndarray] | None:
     import cv2
-    from train.sign_data import list_crops, split_of
+    from signlane_train.sign_data import list_crops, split_of
     items = [it for it in list_crops([Path(r) for r in roots]) if split_of(it[0], 0.1) == "val"]
     if not items:
         return None

@@ -356,9 +356,9 @@ def test_sim_with_driver_and_a_bad_model_is_one_line(capsys):
 
 @pytest.fixture(scope="module")
 def crops(tmp_path_factory):
-    from data_gen.signs import generate_signs
+    from signlane_data.signs import generate_signs
     # Lightning's loggers keep the sys.stderr of their first import: not a test's capsys stream
-    import train.signs  # noqa: F401
+    import signlane_train.signs  # noqa: F401
     root = tmp_path_factory.mktemp("crops")
     generate_signs(root, 140, seed=5, crop=32)
     return root
@@ -382,8 +382,8 @@ def test_resume_from_a_truncated_checkpoint_is_one_line(crops, tmp_path, capsys)
 # ---------------------------------------------------------------------- 9. resume and repeat training
 def test_last_checkpoint_is_every_epoch_and_resume_continues_from_it(crops, tmp_path, monkeypatch):
     import torch
-    from train.sign_task import SignTask
-    from train.signs import train_signs
+    from signlane_train.sign_task import SignTask
+    from signlane_train.signs import train_signs
     out = tmp_path / "run"
 
     def worse_every_epoch(self):  # the monitored metric never improves after the first epoch
@@ -555,7 +555,7 @@ def _hashes(root: Path) -> dict[str, str]:
 
 
 def test_gen_resume_remakes_damaged_files(tmp_path, monkeypatch):
-    from data_gen import lanes as lanes_mod
+    from signlane_data import lanes as lanes_mod
     ref, out = tmp_path / "ref", tmp_path / "out"
     lanes_mod.generate_lanes(ref, 6, seed=3, width=160, height=120)
     real = lanes_mod.LaneJob.__call__
@@ -581,7 +581,7 @@ def test_gen_resume_remakes_damaged_files(tmp_path, monkeypatch):
 
 
 def test_gen_signs_resume_remakes_damaged_crops(tmp_path):
-    from data_gen.signs import generate_signs
+    from signlane_data.signs import generate_signs
     ref, out = tmp_path / "ref", tmp_path / "out"
     generate_signs(ref, 60, seed=2, crop=32)
     generate_signs(out, 60, seed=2, crop=32)

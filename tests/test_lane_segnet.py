@@ -19,10 +19,10 @@ from signlane.world.sampling import HEAVY, FrameSampler, SamplerConfig
 @pytest.fixture(scope="module")
 def trained(tmp_path_factory):
     """Heavy synthetic frames + an autolabelled folder, 1 epoch on both, exported to ONNX."""
-    from data_gen.autolabel_lanes import autolabel_lanes
-    from data_gen.lanes import generate_lanes
-    from export.lanes import export_lanes
-    from train.lanes import train_lanes
+    from signlane_data.autolabel_lanes import autolabel_lanes
+    from signlane_data.lanes import generate_lanes
+    from signlane_export.lanes import export_lanes
+    from signlane_train.lanes import train_lanes
     root = tmp_path_factory.mktemp("lanes")
     generate_lanes(root / "synthetic", 24, seed=5, preset="heavy")
     photos = root / "photos"
@@ -73,7 +73,7 @@ def test_smoke_training_on_mixed_sets_writes_its_outputs(trained):
         assert (run / name).exists(), name
     assert list((run / "logs").rglob("metrics.csv")) and list((run / "tensorboard").rglob("events.*"))
     # both sets were trained on: every frame the stable split puts on the train side, from each
-    from train.lane_data import list_frames, split_of
+    from signlane_train.lane_data import list_frames, split_of
     train = [it for it in list_frames([root / "synthetic", root / "auto"]) if split_of(it.key, 0.1) == "train"]
     assert {it.key.split("/")[0] for it in train} == {"synthetic", "auto"}
     assert json.loads((run / "config.json").read_text())["train_frames"] == len(train)
@@ -82,7 +82,7 @@ def test_smoke_training_on_mixed_sets_writes_its_outputs(trained):
 
 def test_export_matches_torch_through_the_runtime_preprocessing(trained):
     import torch
-    from train.lane_task import LaneTask
+    from signlane_train.lane_task import LaneTask
     root, _, report, onnx_path, exported = trained
     assert exported["parity_max_abs"] <= 1e-4
     meta = {p.key: p.value for p in onnx.load(str(onnx_path)).metadata_props}

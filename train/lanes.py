@@ -12,10 +12,10 @@ import torch
 from signlane.eval_masks import MaskCounts
 from signlane.fileio import atomic_write_text
 from signlane.lanes.seg_model import DEFAULT_SPEC, marking_probability, preprocess_frames, to_frame_mask
-from train.common import ScaleOut, build_trainer, resume_path, save_run_config
-from train.lane_data import FrameDataset, LaneDataModule, read_pair
-from train.lane_net import count_parameters
-from train.lane_task import LaneTask
+from signlane_train.common import ScaleOut, build_trainer, resume_path, save_run_config
+from signlane_train.lane_data import FrameDataset, LaneDataModule, read_pair
+from signlane_train.lane_net import count_parameters
+from signlane_train.lane_task import LaneTask
 
 log = logging.getLogger(__name__)
 

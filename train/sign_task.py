@@ -7,7 +7,7 @@ from torch import nn
 from torchmetrics.classification import MulticlassAccuracy, MulticlassConfusionMatrix, MulticlassF1Score, MulticlassRecall
 
 from signlane.world.art import SIGN_CLASSES
-from train.sign_net import SignNet
+from signlane_train.sign_net import SignNet
 
 
 class SignTask(L.LightningModule):

@@ -11,9 +11,9 @@ import torch
 
 from signlane.draw import contact_sheet, write_image
 from signlane.world.art import SIGN_CLASSES
-from train.common import ScaleOut, build_trainer, resume_path, save_run_config
-from train.sign_data import CropDataset, SignDataModule
-from train.sign_task import SignTask
+from signlane_train.common import ScaleOut, build_trainer, resume_path, save_run_config
+from signlane_train.sign_data import CropDataset, SignDataModule
+from signlane_train.sign_task import SignTask
 
 log = logging.getLogger(__name__)
 

@@ -82,9 +82,9 @@ def _add_cpu_args(p, workers: int) -> None:
 
 def _run_train(args) -> int:
     try:
-        from train.common import ScaleOut
-        from train.lanes import train_lanes
-        from train.signs import train_signs
+        from signlane_train.common import ScaleOut
+        from signlane_train.lanes import train_lanes
+        from signlane_train.signs import train_signs
     except ImportError as e:
         raise UserError(f"training needs the train extra (pip install 'signlane[train]'): {e}") from None
     shared = dict(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr, width=args.width,
@@ -124,7 +124,7 @@ def _run_export(args) -> int:
     if args.kind == "lanes":
         return _run_export_lanes(args)
     try:
-        from export.signs import export_signs
+        from signlane_export.signs import export_signs
     except ImportError as e:
         raise UserError(f"export needs the train extra (pip install 'signlane[train]'): {e}") from None
     try:
@@ -137,8 +137,8 @@ def _run_export(args) -> int:
 
 def _run_export_lanes(args) -> int:
     try:
-        from export.lanes import export_lanes
-        from export.onnx_export import ExportError
+        from signlane_export.lanes import export_lanes
+        from signlane_export.onnx_export import ExportError
     except ImportError as e:
         raise UserError(f"export needs the train extra (pip install 'signlane[train]'): {e}") from None
     try:
@@ -233,8 +233,8 @@ def _run_autolabel(args) -> int:
 
 
 def _run_autolabel_lanes(args) -> int:
-    from data_gen.autolabel_lanes import autolabel_lanes
-    from data_gen.common import DatasetError
+    from signlane_data.autolabel_lanes import autolabel_lanes
+    from signlane_data.common import DatasetError
     from signlane.config import Config
     from signlane.onnx_model import ModelError
     try:
