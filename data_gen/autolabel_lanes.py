@@ -90,7 +90,7 @@ def autolabel_lanes(paths: list[str], out: str | Path, method: str = "sliding-wi
     config = {"method": method, "min_confidence": min_confidence, "every": every, "camera": camera.__dict__,
               "inputs": [str(p) for p in paths]}
     write_manifest(out, "autolabel_lanes", 0, counts, config)
-    log.info("%s: kept %d of %d frames", out, len(records), seen)
+    log.info("%s: kept %d of %d frames", out, len(records), seen)  # `signlane autolabel` says when none
     return {"counts": counts, "failed": failed}
 
 

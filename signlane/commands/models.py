@@ -240,7 +240,8 @@ def _add_autolabel_lanes(kinds) -> None:
     lanes.add_argument("--out", type=Path, required=True, help="output folder (new or empty)")
     lanes.add_argument("--method", default="sliding-window", help="lane method (default sliding-window)")
     lanes.add_argument("--min-confidence", type=float, default=0.7,
-                       help="keep frames whose lane confidence reaches this (default 0.7)")
+                       help="keep frames whose lane confidence reaches this (default 0.7); keeping none is "
+                            "exit code 1")
     lanes.add_argument("--every", type=positive, default=10, help="every Nth video frame (default 10)")
     lanes.add_argument("--config", type=Path, help="TOML config file (the camera section matters)")
     lanes.add_argument("--set", dest="overrides", action="append", default=[], metavar="SECTION.KEY=VALUE",
@@ -271,4 +272,10 @@ def _run_autolabel_lanes(args) -> int:
     except (ValueError, ModelError, DatasetError) as e:
         raise UserError(str(e)) from None
     print(json.dumps({"out": str(args.out), "counts": report["counts"], "method": args.method}))
+    if report["counts"]["kept"] == 0:  # an empty set must not pass for a dataset: say so, exit 1
+        print(f"signlane autolabel: kept none of the {report['counts']['seen']} frames (no lane found with "
+              f"confidence >= {args.min_confidence}); {args.out} is no training set: see "
+              f"{args.out / 'rejected.png'}, check the camera (--set camera.*) or lower --min-confidence",
+              file=sys.stderr)
+        return 1
     return 1 if report["failed"] else 0
