@@ -39,12 +39,6 @@ class DatasetError(Exception):
 
 
 
-def atomic_video_path(path: Path) -> Path:
-    """A temporary name for a file a library writes itself (cv2.VideoWriter needs the extension);
-    rename it onto `path` with os.replace when done."""
-    return _tmp_name(path, keep_ext=True)
-
-
 def remove_stray_tmp(root: str | Path) -> int:
     """Delete temporaries a killed run left under `root`; return how many."""
     count = 0

@@ -250,6 +250,9 @@ def test_drive_frames_and_video(tmp_path: Path) -> None:
         frames += 1
     cap.release()
     assert frames == 10 and manifest["counts"]["frames"] == 10
+    import av
+    with av.open(str(out / "drive.mp4")) as box:  # H.264, which browsers play (OpenCV reads it too)
+        assert box.streams.video[0].codec_context.name == "h264" and manifest["config"]["video"] == "h264"
 
 
 # --------------------------------------------------------------------------- preview
