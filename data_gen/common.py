@@ -23,7 +23,7 @@ from tqdm import tqdm
 import signlane
 from signlane.imagecheck import ImageCheckError, check_integrity, header_size
 # atomic writes live in the runtime package; re-exported here for the generators
-from signlane.fileio import (TMP_SUFFIX, _tmp_name, atomic_imwrite, atomic_write_bytes,  # noqa: F401
+from signlane.fileio import (TMP_SUFFIX, atomic_imwrite, atomic_write_bytes,  # noqa: F401
                              atomic_write_json, atomic_write_text)
 
 log = logging.getLogger(__name__)

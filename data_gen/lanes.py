@@ -18,8 +18,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from signlane_data.common import (PARTIAL, atomic_imwrite, atomic_write_json, atomic_write_text, file_intact, partial_dir,
-                             prepare_output, run_indexed, sample_id, write_manifest)
+from signlane_data.common import (PARTIAL, atomic_imwrite, atomic_write_json, atomic_write_text, file_intact,
+                                  partial_dir, prepare_output, run_indexed, sample_id, write_manifest)
 from signlane.world.render import Sample
 from signlane.world.sampling import HEAVY, FrameSampler, SamplerConfig
 from signlane.world.truth import GroundTruth

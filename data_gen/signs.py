@@ -22,7 +22,7 @@ import numpy as np
 
 from signlane_data import sign_crops as sc
 from signlane_data.common import (PARTIAL, atomic_imwrite, atomic_write_json, file_intact, partial_dir, prepare_output,
-                             run_indexed, sample_id, write_manifest)
+                                  run_indexed, sample_id, write_manifest)
 from signlane.world.art import SIGN_CLASSES
 from signlane.world.render import Sample
 from signlane.world.sampling import FrameSampler, SamplerConfig

@@ -11,8 +11,7 @@ import numpy as np
 import pytest
 
 from signlane_data import lanes as lanes_mod
-from signlane_data.common import (DatasetError, atomic_write_bytes, chunked, prepare_output, run_indexed,
-                             sample_id)
+from signlane_data.common import (DatasetError, atomic_write_bytes, chunked, prepare_output, run_indexed, sample_id)
 from signlane_data.drive import generate_drive
 from signlane_data.lanes import generate_lanes, teacher_steering
 from signlane_data.preview import contact_sheet

@@ -3,7 +3,6 @@ only when complete, and a simulator run through the drive server shows what the 
 import json
 
 import av
-import cv2
 import numpy as np
 import pytest
 
