@@ -96,6 +96,22 @@ def test_smoke_training_on_mixed_sets_writes_its_outputs(trained):
     assert 0.0 <= report["val_f1_at_2px"] <= 1.0 and report["parameters"] <= 500_000
 
 
+def test_lane_training_repeats_exactly_by_default(trained, tmp_path):
+    """The same seed, a worker process augmenting: the same ONNX outputs on a fixed batch."""
+    from signlane_export.lanes import export_lanes
+    from signlane_train.lanes import train_lanes
+    root = trained[0]
+    frames = [cv2.imread(str(p)) for p in sorted((root / "synthetic" / "images").glob("*.jpg"))[:6]]
+    outputs = []
+    for k in range(2):
+        report = train_lanes([root / "synthetic"], tmp_path / f"r{k}", epochs=1, batch_size=8, workers=1,
+                             quiet=True, eval_frames=4, threads=1, seed=7)
+        export_lanes(report["best_checkpoint"], tmp_path / f"r{k}.onnx")
+        outputs.append(seg_model.LaneSegModel(tmp_path / f"r{k}.onnx").probabilities(frames))
+    assert np.array_equal(outputs[0], outputs[1])
+    assert json.loads((tmp_path / "r0" / "config.json").read_text())["deterministic"] is True
+
+
 def test_export_matches_torch_through_the_runtime_preprocessing(trained):
     import torch
     from signlane_train.lane_task import LaneTask
