@@ -21,9 +21,9 @@ import cv2
 import numpy as np
 from tqdm import tqdm
 
-from data_gen.common import DatasetError, atomic_imwrite, atomic_write_text, write_manifest
-from data_gen.lanes import JPEG_QUALITY, teacher_steering
-from data_gen.preview import contact_sheet, lane_overlay
+from signlane_data.common import DatasetError, atomic_imwrite, atomic_write_text, write_manifest
+from signlane_data.lanes import JPEG_QUALITY, teacher_steering
+from signlane_data.preview import contact_sheet, lane_overlay
 from signlane import lanes
 from signlane.config import CameraConfig
 from signlane.media import MediaError, expand, iter_frames
@@ -90,7 +90,7 @@ def autolabel_lanes(paths: list[str], out: str | Path, method: str = "sliding-wi
     config = {"method": method, "min_confidence": min_confidence, "every": every, "camera": camera.__dict__,
               "inputs": [str(p) for p in paths]}
     write_manifest(out, "autolabel_lanes", 0, counts, config)
-    log.info("%s: kept %d of %d frames", out, len(records), seen)
+    log.info("%s: kept %d of %d frames", out, len(records), seen)  # `signlane autolabel` says when none
     return {"counts": counts, "failed": failed}
 
 

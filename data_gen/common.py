@@ -23,7 +23,7 @@ from tqdm import tqdm
 import signlane
 from signlane.imagecheck import ImageCheckError, check_integrity, header_size
 # atomic writes live in the runtime package; re-exported here for the generators
-from signlane.fileio import (TMP_SUFFIX, _tmp_name, atomic_imwrite, atomic_write_bytes,  # noqa: F401
+from signlane.fileio import (TMP_SUFFIX, atomic_imwrite, atomic_write_bytes,  # noqa: F401
                              atomic_write_json, atomic_write_text)
 
 log = logging.getLogger(__name__)
@@ -37,12 +37,6 @@ class DatasetError(Exception):
     """A dataset folder cannot be used as asked; the message says why and what to do."""
 
 
-
-
-def atomic_video_path(path: Path) -> Path:
-    """A temporary name for a file a library writes itself (cv2.VideoWriter needs the extension);
-    rename it onto `path` with os.replace when done."""
-    return _tmp_name(path, keep_ext=True)
 
 
 def remove_stray_tmp(root: str | Path) -> int:

@@ -1,22 +1,21 @@
 """A recorded drive: consecutive frames along one track, in the lane dataset layout, plus video.
 
 Layout of `out/`: images/<id>.jpg, masks/<id>.png, labels.jsonl (the lane contract plus "t",
-seconds since the first frame), drive.mp4 (mp4v, `fps`, the JPEG frames in order), manifest.json.
+seconds since the first frame), drive.mp4 (H.264, `fps`, the JPEG frames in order), manifest.json.
 """
 from __future__ import annotations
 
 import logging
-import os
 from dataclasses import asdict, dataclass
 from functools import lru_cache
 from pathlib import Path
 
 import cv2
 
-from data_gen.common import (DatasetError, atomic_video_path, prepare_output, run_indexed, sample_id,
-                             write_manifest)
-from data_gen.lanes import JPEG_QUALITY, K_CURV, K_HEADING, K_OFFSET, frame_done, merge_labels, write_frame
+from signlane.video_out import VideoOut
 from signlane.world.sampling import DriveSampler, SamplerConfig
+from signlane_data.common import prepare_output, run_indexed, sample_id, write_manifest
+from signlane_data.lanes import JPEG_QUALITY, K_CURV, K_HEADING, K_OFFSET, frame_done, merge_labels, write_frame
 
 log = logging.getLogger(__name__)
 
@@ -52,16 +51,9 @@ def write_video(out: Path, n: int, fps: float) -> Path:
     first = cv2.imread(str(out / "images" / f"{sample_id(0, n)}.jpg"), cv2.IMREAD_COLOR)
     h, w = first.shape[:2]
     path = out / VIDEO
-    tmp = atomic_video_path(path)
-    writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*"mp4v"), float(fps), (w, h))
-    if not writer.isOpened():
-        raise DatasetError(f"{tmp}: OpenCV cannot write mp4v video here (no codec?)")
-    try:
+    with VideoOut(path, float(fps), (w, h)) as video:
         for i in range(n):
-            writer.write(cv2.imread(str(out / "images" / f"{sample_id(i, n)}.jpg"), cv2.IMREAD_COLOR))
-    finally:
-        writer.release()
-    os.replace(tmp, path)
+            video.write(cv2.imread(str(out / "images" / f"{sample_id(i, n)}.jpg"), cv2.IMREAD_COLOR))
     return path
 
 
@@ -77,7 +69,7 @@ def generate_drive(out: str | Path, n: int, seed: int, width: int = 640, height:
     sampler = SamplerConfig(width=width, height=height, effects=effects, style=style)
     config = {"n": int(n), "seed": int(seed), "fps": float(fps), "speed_mps": float(speed_mps),
               "sampler": asdict(sampler), "jpeg_quality": JPEG_QUALITY,
-              "steering": {"k_offset": K_OFFSET, "k_heading": K_HEADING, "k_curv": K_CURV}, "video": "mp4v"}
+              "steering": {"k_offset": K_OFFSET, "k_heading": K_HEADING, "k_curv": K_CURV}, "video": "h264"}
     manifest = prepare_output(out, "drive", config, resume)
     if manifest is None:
         for d in ("images", "masks"):
@@ -90,6 +82,6 @@ def generate_drive(out: str | Path, n: int, seed: int, width: int = 640, height:
         manifest = write_manifest(out, "drive", seed, counts, config)
         log.info("%s: wrote a %d-frame drive and %s", out, n, VIDEO)
     if preview:
-        from data_gen.preview import write_lane_preview
+        from signlane_data.preview import write_lane_preview
         write_lane_preview(out, stride=max(1, n // 32))
     return manifest

@@ -18,8 +18,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from data_gen.common import (PARTIAL, atomic_imwrite, atomic_write_json, atomic_write_text, file_intact, partial_dir,
-                             prepare_output, run_indexed, sample_id, write_manifest)
+from signlane_data.common import (PARTIAL, atomic_imwrite, atomic_write_json, atomic_write_text, file_intact,
+                                  partial_dir, prepare_output, run_indexed, sample_id, write_manifest)
 from signlane.world.render import Sample
 from signlane.world.sampling import HEAVY, FrameSampler, SamplerConfig
 from signlane.world.truth import GroundTruth
@@ -146,6 +146,6 @@ def generate_lanes(out: str | Path, n: int, seed: int, width: int = 320, height:
         manifest = write_manifest(out, "lanes", seed, {"frames": n, "sign_boxes": signs}, config)
         log.info("%s: wrote %d lane frames", out, n)
     if preview:
-        from data_gen.preview import write_lane_preview
+        from signlane_data.preview import write_lane_preview
         write_lane_preview(out)
     return manifest

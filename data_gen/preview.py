@@ -8,7 +8,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from data_gen.common import atomic_imwrite
+from signlane_data.common import atomic_imwrite
 from signlane.world.art import SIGN_CLASSES
 
 BG = (40, 40, 40)  # BGR sheet background

@@ -20,9 +20,9 @@ from pathlib import Path
 
 import numpy as np
 
-from data_gen import sign_crops as sc
-from data_gen.common import (PARTIAL, atomic_imwrite, atomic_write_json, file_intact, partial_dir, prepare_output,
-                             run_indexed, sample_id, write_manifest)
+from signlane_data import sign_crops as sc
+from signlane_data.common import (PARTIAL, atomic_imwrite, atomic_write_json, file_intact, partial_dir, prepare_output,
+                                  run_indexed, sample_id, write_manifest)
 from signlane.world.art import SIGN_CLASSES
 from signlane.world.render import Sample
 from signlane.world.sampling import FrameSampler, SamplerConfig
@@ -155,7 +155,7 @@ def generate_signs(out: str | Path, n: int, seed: int, crop: int = 48, workers: 
     if manifest is None:
         manifest = _generate(out, n, seed, crop, workers, unknown_fraction, frames, sampler, config)
     if preview:
-        from data_gen.preview import write_sign_preview
+        from signlane_data.preview import write_sign_preview
         write_sign_preview(out)
     return manifest
 

@@ -5,16 +5,17 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from export.onnx_export import data_hash, export_onnx, run_data_roots
+from signlane_export.onnx_export import export_onnx, run_dir_of, training_info
 from signlane.lanes.seg_model import CLASSES, DEFAULT_SPEC, TASK
 from signlane.onnx_model import make_metadata
 
 
 def export_lanes(ckpt: str | Path, out: str | Path, metrics: dict | None = None, tol: float = 1e-4) -> dict:
-    """Export a lanes checkpoint; returns a report (parity, size, parameters). Without `metrics`
-    the run's report.json val scores go into the metadata."""
-    from train.lane_net import count_parameters
-    from train.lane_task import LaneTask
+    """Export a lanes checkpoint; returns a report (parity, size, parameters). The metadata's data
+    hash and val scores come from the checkpoint itself, plus the run's report.json (marking F1
+    within 2 px) while the run folder is there; `metrics` adds to them."""
+    from signlane_train.lane_net import count_parameters
+    from signlane_train.lane_task import LaneTask
     ckpt, out = Path(ckpt), Path(out)
     if not ckpt.is_file():
         raise ValueError(f"{ckpt}: checkpoint not found")
@@ -23,13 +24,13 @@ def export_lanes(ckpt: str | Path, out: str | Path, metrics: dict | None = None,
     except (KeyError, RuntimeError, TypeError) as e:
         raise ValueError(f"{ckpt}: not a lanes checkpoint ({type(e).__name__}: {str(e)[:120]})") from None
     spec = DEFAULT_SPEC
-    run, roots = run_data_roots(ckpt)
-    if metrics is None and (run / "report.json").exists():  # the run's val scores travel with the model
-        report = json.loads((run / "report.json").read_text())
-        metrics = {k: v for k, v in report.items() if k.startswith("val_")}
-    meta = make_metadata(TASK, list(CLASSES), spec, data_hash(roots), metrics or {},
+    info = training_info(ckpt)
+    run_report = run_dir_of(ckpt) / "report.json"
+    scored = json.loads(run_report.read_text()) if run_report.exists() else {}
+    metrics = {**info.get("metrics", {}), **{k: v for k, v in scored.items() if k.startswith("val_")}, **(metrics or {})}
+    meta = make_metadata(TASK, list(CLASSES), spec, info["data_hash"], metrics,
                          {"arch": f"LaneSegNet width {task.hparams.width}", "checkpoint": ckpt.name,
                           "output": json.dumps({"size": "input", "classes": list(CLASSES), "kind": "logits"})})
     report = export_onnx(task.net, (1, 3, spec.height, spec.width), out, meta, tol=tol)
-    report["parameters"] = count_parameters(task.net)
+    report.update({"parameters": count_parameters(task.net), "data_hash": info["data_hash"], "metrics": metrics})
     return report

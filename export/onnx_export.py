@@ -2,7 +2,6 @@
 int8 quantization. Export fails loudly: a file that does not check or match torch raises."""
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import tempfile
@@ -12,6 +11,8 @@ from pathlib import Path
 import numpy as np
 import onnx
 import torch
+
+from signlane_data.content_hash import content_hash
 
 
 class ExportError(Exception):
@@ -23,23 +24,28 @@ def run_dir_of(ckpt: Path) -> Path:
     return ckpt.parent.parent if ckpt.parent.name == "checkpoints" else ckpt.parent
 
 
-def run_data_roots(ckpt: Path) -> tuple[Path, list[str]]:
-    """(run folder, the dataset folders its config.json lists; [] without a config)."""
-    run = run_dir_of(ckpt)
-    cfg = json.loads((run / "config.json").read_text()) if (run / "config.json").exists() else {}
-    return run, list(cfg.get("data", []))
+def training_info(ckpt: Path) -> dict:
+    """{"data": [folders], "data_hash": str, "metrics": {name: float}} of a checkpoint: what
+    training stored in it (signlane_train.run_info), so export needs neither the run folder nor
+    the data. A checkpoint from before that falls back on its run's config.json (data paths as
+    written then) and hashes those folders where they still exist ("unknown" where not)."""
+    from signlane_train.run_info import KEY
+    try:
+        raw = torch.load(ckpt, map_location="cpu", weights_only=False)
+    except Exception as e:  # a truncated zip, a pickle of something else: one line, not a traceback
+        raise ValueError(f"{ckpt}: not a readable checkpoint ({type(e).__name__}: {str(e)[:120]})") from None
+    if isinstance(raw, dict) and isinstance(raw.get(KEY), dict):
+        return raw[KEY]
+    cfg_path = run_dir_of(ckpt) / "config.json"
+    roots = list(json.loads(cfg_path.read_text()).get("data", [])) if cfg_path.exists() else []
+    present = bool(roots) and all(Path(r).is_dir() for r in roots)
+    return {"data": roots, "data_hash": content_hash(roots) if present else "unknown", "metrics": {}}
 
 
-def data_hash(roots: list[str]) -> str:
-    """Hash of the training sets' manifests (or file lists when there is no manifest);
-    "unknown" without any."""
-    if not roots:
-        return "unknown"
-    h = hashlib.sha256()
-    for r in sorted(roots):
-        m = Path(r) / "manifest.json"
-        h.update(m.read_bytes() if m.exists() else "\n".join(sorted(p.name for p in Path(r).rglob("*.png"))).encode())
-    return h.hexdigest()[:16]
+def present_data(info: dict) -> list[str] | None:
+    """The training folders when all of them still exist (for checks on the val split), else None."""
+    roots = info.get("data") or []
+    return roots if roots and all(Path(r).is_dir() for r in roots) else None
 
 
 def _session(path: str | Path):

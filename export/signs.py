@@ -6,31 +6,38 @@ from pathlib import Path
 
 import numpy as np
 
-from export.onnx_export import data_hash, export_onnx, quantize_int8, run_data_roots
+from signlane_export.onnx_export import export_onnx, present_data, quantize_int8, training_info
 from signlane.onnx_model import make_metadata
 from signlane.signs.classifier import DEFAULT_SPEC, TASK, SignClassifier, preprocess_crops
 from signlane.world.art import SIGN_CLASSES
 
 
 def export_signs(ckpt: str | Path, out: str | Path, int8: bool = False, metrics: dict | None = None) -> dict:
-    """Export a sign checkpoint; returns a report (parity, sizes, val accuracy of fp32 and int8)."""
-    from train.sign_task import SignTask
+    """Export a sign checkpoint; returns a report (parity, sizes, the metadata's metrics and, while
+    the training data still exists, the ONNX file's val accuracy, fp32 and int8). The metadata's
+    data hash and metrics come from the checkpoint itself (`metrics` adds to them)."""
+    from signlane_train.sign_task import SignTask
     ckpt, out = Path(ckpt), Path(out)
     if not ckpt.is_file():
         raise ValueError(f"{ckpt}: checkpoint not found")
+    info = training_info(ckpt)  # first: a file that is no checkpoint gets its one line here
     task = SignTask.load_from_checkpoint(str(ckpt), map_location="cpu").eval()
     size = int(task.hparams.size)
     spec = replace(DEFAULT_SPEC, width=size, height=size)
-    _, roots = run_data_roots(ckpt)
-    meta = make_metadata(TASK, list(SIGN_CLASSES), spec, data_hash(roots), metrics or {},
+    metrics = {**info.get("metrics", {}), **(metrics or {})}
+    roots = present_data(info)
+    if int8 and roots is None:  # fail before writing anything
+        raise ValueError(f"--int8 calibrates on the training data, which is gone: {', '.join(info.get('data') or ['?'])}")
+    meta = make_metadata(TASK, list(SIGN_CLASSES), spec, info["data_hash"], metrics,
                          {"arch": "SignNet", "checkpoint": ckpt.name})
     report = export_onnx(task.net, (1, 3, size, size), out, meta)
+    report.update({"data_hash": info["data_hash"], "metrics": metrics})
     val = _val_crops(roots, spec) if roots else None
     if val is not None:
         report["val_accuracy"] = _accuracy(out, *val)
     if int8:
         if val is None:
-            raise ValueError("--int8 needs the training data (listed in the run's config.json) for calibration")
+            raise ValueError(f"--int8: no val crops to calibrate on in {', '.join(roots)}")
         q = out.with_name(out.stem + "_int8.onnx")
         calib = [preprocess_crops(val[0][i:i + 64], spec) for i in range(0, min(len(val[0]), 1024), 64)]
         quantize_int8(out, q, calib)
@@ -41,7 +48,7 @@ def export_signs(ckpt: str | Path, out: str | Path, int8: bool = False, metrics:
 
 def _val_crops(roots: list[str], spec) -> tuple[list[np.ndarray], np.ndarray] | None:
     import cv2
-    from train.sign_data import list_crops, split_of
+    from signlane_train.sign_data import list_crops, split_of
     items = [it for it in list_crops([Path(r) for r in roots]) if split_of(it[0], 0.1) == "val"]
     if not items:
         return None

@@ -1,11 +1,11 @@
-"""Overlays for people: lane polylines, masks, sign boxes, a HUD, contact sheets, video files.
+"""Overlays for people: lane polylines, masks, sign boxes, a HUD, contact sheets, bar charts
+(video files: signlane/video_out.py).
 
 All functions take and return uint8 (H, W, 3) BGR images; drawing functions work in place and
 also return the image for chaining.
 """
 from __future__ import annotations
 
-import os
 from pathlib import Path
 from typing import Iterable, Sequence
 
@@ -94,37 +94,6 @@ def write_image(path: str | Path, image: np.ndarray) -> None:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     atomic_imwrite(path if path.suffix else path.with_suffix(".png"), image)
-
-
-class VideoOut:
-    """MP4 writer that appears under its final name only when closed successfully."""
-
-    def __init__(self, path: str | Path, fps: float, size: tuple[int, int]):
-        self.path = Path(path)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._tmp = self.path.with_name(f".{self.path.stem}.tmp{self.path.suffix}")
-        self._writer = cv2.VideoWriter(str(self._tmp), cv2.VideoWriter_fourcc(*"mp4v"), fps, size)
-        if not self._writer.isOpened():
-            raise OSError(f"{self.path}: cannot open a video writer (mp4v)")
-        self.frames = 0
-
-    def write(self, image: np.ndarray) -> None:
-        self._writer.write(image)
-        self.frames += 1
-
-    def close(self) -> None:
-        self._writer.release()
-        os.replace(self._tmp, self.path)
-
-    def __enter__(self) -> "VideoOut":
-        return self
-
-    def __exit__(self, exc_type, exc, tb) -> None:
-        if exc_type is None:
-            self.close()
-        else:
-            self._writer.release()
-            self._tmp.unlink(missing_ok=True)
 
 
 def bar_chart(title: str, labels: Sequence[str], series: dict[str, Sequence[float]], ymax: float | None = None,

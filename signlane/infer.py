@@ -18,10 +18,11 @@ import numpy as np
 from tqdm import tqdm
 
 from signlane.config import Config
-from signlane.draw import VideoOut, draw_boxes, draw_hud, draw_lane, write_image
+from signlane.draw import draw_boxes, draw_hud, draw_lane, write_image
 from signlane.fileio import atomic_open_text, atomic_write_text
 from signlane.imagecheck import DEFAULT_MAX_PIXELS
 from signlane.media import MediaError, Source, expand, iter_video, read_image, video_info
+from signlane.video_out import VideoOut
 from signlane.pipeline import Pipeline
 from signlane.types import Command, Frame, Perception
 
@@ -118,7 +119,8 @@ class Writer:
         else:
             if self._video is None:
                 h, w = image.shape[:2]
-                self._video = VideoOut(self.out / f"{stem}.mp4", video_info(src.path)[0], (w, h))
+                fps = video_info(src.path)[0]
+                self._video = VideoOut(self.out / f"{stem}.mp4", fps if fps > 0 else 30.0, (w, h))  # 0: not stated
             self._video.write(image)
         if self.save_masks:
             h, w = p.frame.image_bgr.shape[:2]
@@ -131,7 +133,7 @@ class Writer:
             if ok:
                 self._video.close()
             else:
-                self._video.__exit__(RuntimeError, None, None)
+                self._video.discard()
             self._video = None
 
 

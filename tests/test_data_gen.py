@@ -10,14 +10,13 @@ import cv2
 import numpy as np
 import pytest
 
-from data_gen import lanes as lanes_mod
-from data_gen.common import (DatasetError, atomic_write_bytes, chunked, prepare_output, run_indexed,
-                             sample_id)
-from data_gen.drive import generate_drive
-from data_gen.lanes import generate_lanes, teacher_steering
-from data_gen.preview import contact_sheet
-from data_gen.sign_crops import colour_regions, crop_resize, iou, jitter_box
-from data_gen.signs import class_targets, generate_signs, unknown_quota
+from signlane_data import lanes as lanes_mod
+from signlane_data.common import (DatasetError, atomic_write_bytes, chunked, prepare_output, run_indexed, sample_id)
+from signlane_data.drive import generate_drive
+from signlane_data.lanes import generate_lanes, teacher_steering
+from signlane_data.preview import contact_sheet
+from signlane_data.sign_crops import colour_regions, crop_resize, iou, jitter_box
+from signlane_data.signs import class_targets, generate_signs, unknown_quota
 from signlane.world.art import SIGN_CLASSES, draw_sign
 
 N_LANES = 12
@@ -222,7 +221,7 @@ def test_signs_identical_with_two_workers(tmp_path: Path) -> None:
 
 
 def test_every_world_distractor_is_an_unknown_sprite_and_no_octagon_is() -> None:
-    from data_gen.sign_crops import STOP_WORDS, UNKNOWN_KIND_WEIGHTS
+    from signlane_data.sign_crops import STOP_WORDS, UNKNOWN_KIND_WEIGHTS
     from signlane.world.art import DISTRACTOR_KINDS
     assert set(UNKNOWN_KIND_WEIGHTS) == set(DISTRACTOR_KINDS)  # what the car meets, the classifier met
     assert not any("octagon" in k for k in DISTRACTOR_KINDS)  # a red octagon is a stop sign
@@ -250,6 +249,9 @@ def test_drive_frames_and_video(tmp_path: Path) -> None:
         frames += 1
     cap.release()
     assert frames == 10 and manifest["counts"]["frames"] == 10
+    import av
+    with av.open(str(out / "drive.mp4")) as box:  # H.264, which browsers play (OpenCV reads it too)
+        assert box.streams.video[0].codec_context.name == "h264" and manifest["config"]["video"] == "h264"
 
 
 # --------------------------------------------------------------------------- preview

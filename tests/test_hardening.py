@@ -356,9 +356,9 @@ def test_sim_with_driver_and_a_bad_model_is_one_line(capsys):
 
 @pytest.fixture(scope="module")
 def crops(tmp_path_factory):
-    from data_gen.signs import generate_signs
+    from signlane_data.signs import generate_signs
     # Lightning's loggers keep the sys.stderr of their first import: not a test's capsys stream
-    import train.signs  # noqa: F401
+    import signlane_train.signs  # noqa: F401
     root = tmp_path_factory.mktemp("crops")
     generate_signs(root, 140, seed=5, crop=32)
     return root
@@ -382,8 +382,8 @@ def test_resume_from_a_truncated_checkpoint_is_one_line(crops, tmp_path, capsys)
 # ---------------------------------------------------------------------- 9. resume and repeat training
 def test_last_checkpoint_is_every_epoch_and_resume_continues_from_it(crops, tmp_path, monkeypatch):
     import torch
-    from train.sign_task import SignTask
-    from train.signs import train_signs
+    from signlane_train.sign_task import SignTask
+    from signlane_train.signs import train_signs
     out = tmp_path / "run"
 
     def worse_every_epoch(self):  # the monitored metric never improves after the first epoch
@@ -412,15 +412,38 @@ def test_last_checkpoint_is_every_epoch_and_resume_continues_from_it(crops, tmp_
 
 
 def test_deterministic_training_repeats_exactly(crops, tmp_path, capsys):
+    """Deterministic is the default: the same seed, with a worker process augmenting, gives the
+    same weights and the same ONNX outputs on a fixed batch; another seed does not."""
     import torch
-    states = []
-    for k in range(2):
-        assert _train(crops, tmp_path / f"r{k}", "--epochs", "2", "--seed", "3", "--deterministic") == 0
-        ckpt = torch.load(tmp_path / f"r{k}" / "checkpoints" / "last.ckpt", map_location="cpu", weights_only=False)
-        states.append(ckpt["state_dict"])
+    from signlane.signs.classifier import SignClassifier
+    from signlane_export.signs import export_signs
+    fixed = [cv2.imread(str(p)) for p in sorted(crops.rglob("*.png"))[:48]]
+    states, outputs = [], []
+    for k, seed in enumerate(("3", "3", "4")):
+        assert _train(crops, tmp_path / f"r{k}", "--epochs", "1", "--seed", seed, "--workers", "1") == 0
+        ckpt = tmp_path / f"r{k}" / "checkpoints" / "last.ckpt"
+        states.append(torch.load(ckpt, map_location="cpu", weights_only=False)["state_dict"])
+        export_signs(ckpt, tmp_path / f"r{k}.onnx")
+        outputs.append(SignClassifier(tmp_path / f"r{k}.onnx").probabilities(fixed))
     assert states[0].keys() == states[1].keys()
     assert max(float((states[0][k].float() - states[1][k].float()).abs().max()) for k in states[0]) == 0.0
-    assert json.loads((tmp_path / "r0" / "config.json").read_text())["deterministic"] is True
+    assert np.array_equal(outputs[0], outputs[1]) and not np.allclose(outputs[0], outputs[2], atol=1e-4)
+    config = json.loads((tmp_path / "r0" / "config.json").read_text())
+    assert config["deterministic"] is True and config["workers"] == 1
+
+
+def test_each_data_loader_worker_draws_its_own_augmentations(crops):
+    """albumentations keeps its own generator: without a per-worker seed, two workers would start
+    from one copy of it and augment the same crop identically."""
+    import lightning as L
+    import torch
+    from signlane_train.sign_data import SignDataModule
+    dm = SignDataModule([crops], batch_size=4, workers=2, seed=0)
+    dm.setup()
+    dm.train_items = [dm.train_items[0]] * 8  # one crop, so only the augmentations can differ
+    L.seed_everything(0)
+    batches = [b[0] for b in dm.train_dataloader()]  # workers take turns: batch 0 from one, 1 from the other
+    assert len(batches) == 2 and not torch.equal(batches[0], batches[1])
 
 
 # ---------------------------------------------------------------------- 6. config ranges
@@ -555,7 +578,7 @@ def _hashes(root: Path) -> dict[str, str]:
 
 
 def test_gen_resume_remakes_damaged_files(tmp_path, monkeypatch):
-    from data_gen import lanes as lanes_mod
+    from signlane_data import lanes as lanes_mod
     ref, out = tmp_path / "ref", tmp_path / "out"
     lanes_mod.generate_lanes(ref, 6, seed=3, width=160, height=120)
     real = lanes_mod.LaneJob.__call__
@@ -581,7 +604,7 @@ def test_gen_resume_remakes_damaged_files(tmp_path, monkeypatch):
 
 
 def test_gen_signs_resume_remakes_damaged_crops(tmp_path):
-    from data_gen.signs import generate_signs
+    from signlane_data.signs import generate_signs
     ref, out = tmp_path / "ref", tmp_path / "out"
     generate_signs(ref, 60, seed=2, crop=32)
     generate_signs(out, 60, seed=2, crop=32)

@@ -26,6 +26,23 @@ def test_finds_the_lane_on_clean_frames(clean_frames):
     assert np.mean(errs < 0.1) >= 10 / 12  # a tight bend or two may miss the far line
 
 
+def test_a_well_found_dashed_centre_line_reaches_autolabels_default_confidence():
+    """Painted two-lane roads, a dashed centre line beside a solid edge: calibrated, most frames
+    reach `autolabel lanes`' default 0.7 and each of them is found to within 0.1 lane widths;
+    the raw window fill (full_fill 1) kept fewer (a dash lights only some windows)."""
+    from signlane.world.sampling import FrameSampler, SamplerConfig
+    smp = FrameSampler(3, SamplerConfig(effects="clean", randomise=False))
+    kept, kept_raw = [], 0
+    for i in range(20):
+        s = smp.sample(i)
+        est = lanes.get(NAME, camera=s.truth.camera)(s.image)
+        raw = lanes.get(NAME, camera=s.truth.camera, full_fill=1.0)(s.image)
+        if est.found and est.confidence >= 0.7:
+            kept.append(abs(est.offset - s.truth.offset))
+        kept_raw += raw.found and raw.confidence >= 0.7
+    assert len(kept) >= 17 and max(kept) < 0.1 and kept_raw <= len(kept) - 3, (kept, kept_raw)
+
+
 @pytest.mark.parametrize("lateral, sign", [(0.8, 1), (-0.8, -1)])
 def test_offset_sign_follows_the_cars_displacement(drive, stretches, lateral, sign):
     smp = drive.renderer.render_on_route(drive.route, stretches["straight"], drive.camera, lateral_m=lateral)

@@ -16,9 +16,9 @@ from signlane.world.art import SIGN_CLASSES
 @pytest.fixture(scope="module")
 def trained(tmp_path_factory):
     """A 1-epoch run on a tiny generated crop set, exported to ONNX (int8 too)."""
-    from data_gen.signs import generate_signs
-    from export.signs import export_signs
-    from train.signs import train_signs
+    from signlane_data.signs import generate_signs
+    from signlane_export.signs import export_signs
+    from signlane_train.signs import train_signs
     root = tmp_path_factory.mktemp("signs")
     generate_signs(root / "data", 140, seed=5, crop=32)
     report = train_signs([root / "data"], root / "run", epochs=1, batch_size=32, quiet=True)
@@ -65,7 +65,7 @@ def test_export_matches_torch_and_carries_its_contract(trained):
     assert clf.probabilities(crops[:1]).shape == (1, 7) and clf.probabilities(crops).shape == (37, 7)
     # the runtime's preprocessing fed to torch gives the ONNX answer (one preprocessing path)
     import torch
-    from train.sign_task import SignTask
+    from signlane_train.sign_task import SignTask
     task = SignTask.load_from_checkpoint(report["best_checkpoint"], map_location="cpu").eval()
     with torch.no_grad():
         ref = torch.softmax(task(torch.from_numpy(preprocess_crops(crops, DEFAULT_SPEC))), 1).numpy()
@@ -139,7 +139,7 @@ def test_autolabel_files_proposals_by_the_classifier_and_draws_sheets(tmp_path, 
 
 def test_shipped_model_meets_a_floor_on_a_fresh_seeded_set(tmp_path):
     """The shipped model (see signlane/models/signs.json) on crops it never saw."""
-    from data_gen.signs import generate_signs
+    from signlane_data.signs import generate_signs
     from signlane.evaluate import eval_signs
     from signlane.signs.classifier import DEFAULT_MODEL
     card = json.loads(DEFAULT_MODEL.with_suffix(".json").read_text())
@@ -167,7 +167,7 @@ def _frame_with_stop(size: int) -> tuple[np.ndarray, tuple[int, int, int, int]]:
 def test_washed_out_signs_are_not_examples_of_their_class():
     """A sign glare or exposure has turned into a flat patch (plus sensor noise) is left out of
     the crop set instead of teaching the classifier that blank patches are signs."""
-    from data_gen.sign_crops import MIN_FACE_CONTRAST, face_contrast
+    from signlane_data.sign_crops import MIN_FACE_CONTRAST, face_contrast
     rng = np.random.default_rng(0)
     frame, box = _frame_with_stop(40)
     assert face_contrast(frame, box) >= MIN_FACE_CONTRAST
@@ -177,7 +177,7 @@ def test_washed_out_signs_are_not_examples_of_their_class():
 
 
 def test_augmentation_dose_zero_leaves_crops_alone_and_full_dose_changes_them(tmp_path):
-    from train.sign_data import CropDataset, train_augment
+    from signlane_train.sign_data import CropDataset, train_augment
     crop = cv2.resize(np.dstack([np.arange(32 * 32, dtype=np.uint8).reshape(32, 32)] * 3), (48, 48))
     path = tmp_path / "stop.png"
     cv2.imwrite(str(path), crop)
@@ -192,7 +192,7 @@ def test_signs_the_camera_smeared_are_not_examples_but_noisy_ones_are():
     """The symbol-survival rule: a sign motion-blurred diagonally over 13 of its 32 px is left out
     of the crop set, one under ordinary sensor noise and a darker exposure is kept."""
     from types import SimpleNamespace
-    from data_gen.sign_crops import MIN_SYMBOL_SURVIVAL, symbol_survival, usable_sign
+    from signlane_data.sign_crops import MIN_SYMBOL_SURVIVAL, symbol_survival, usable_sign
     from signlane.world.render import Sample
     rng = np.random.default_rng(0)
     clean, box = _frame_with_stop(32)

@@ -2,11 +2,14 @@
 from __future__ import annotations
 
 import json
+import random
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import lightning as L
+import numpy as np
+import torch
 from lightning.pytorch.callbacks import EarlyStopping, ModelCheckpoint
 from lightning.pytorch.loggers import CSVLogger, TensorBoardLogger
 
@@ -25,9 +28,11 @@ class ScaleOut:
 
 def build_trainer(out: Path, epochs: int, monitor: str, mode: str, patience: int, scale: ScaleOut,
                   extra_callbacks: list | None = None, quiet: bool = False,
-                  deterministic: bool = False) -> tuple[L.Trainer, ModelCheckpoint]:
+                  deterministic: bool = True) -> tuple[L.Trainer, ModelCheckpoint]:
     """A Trainer writing CSV + TensorBoard logs and checkpoints to out: best.ckpt (by `monitor`)
-    and last.ckpt after every epoch, so --resume continues from the last finished epoch."""
+    and last.ckpt after every epoch, so --resume continues from the last finished epoch.
+    deterministic: torch's deterministic algorithms wherever an op has one ("warn": an op
+    without one, on some GPU, warns instead of stopping the run)."""
     ckpt = ModelCheckpoint(dirpath=out / "checkpoints", filename="best", monitor=monitor, mode=mode, save_top_k=1)
     # its own callback: ModelCheckpoint(save_last=True) writes last only when `monitor` improves
     last = ModelCheckpoint(dirpath=out / "checkpoints", filename="last", monitor=None, save_top_k=1,
@@ -38,8 +43,21 @@ def build_trainer(out: Path, epochs: int, monitor: str, mode: str, patience: int
                         logger=[CSVLogger(out, name="logs"), TensorBoardLogger(out, name="tensorboard")],
                         accelerator=scale.accelerator, devices=devices, num_nodes=scale.num_nodes,
                         strategy=scale.strategy, enable_progress_bar=not quiet, enable_model_summary=not quiet,
-                        log_every_n_steps=10, deterministic=deterministic)
+                        log_every_n_steps=10, deterministic="warn" if deterministic else False)
     return trainer, ckpt
+
+
+def seed_worker(worker_id: int) -> None:
+    """DataLoader worker_init_fn: each worker's own seed (torch gives worker k the base seed + k,
+    the base drawn from the seeded main process) for numpy, random and the dataset's
+    albumentations pipeline, which keeps a generator of its own: without this every worker
+    would start from one copy of it and draw the same augmentations as its siblings."""
+    seed = torch.initial_seed() % 2**32
+    np.random.seed(seed)
+    random.seed(seed)
+    augment = getattr(torch.utils.data.get_worker_info().dataset, "augment", None)
+    if augment is not None:
+        augment.set_random_seed(seed)
 
 
 def resume_path(out: Path, resume: bool) -> str | None:

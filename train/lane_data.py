@@ -21,6 +21,7 @@ from torch.utils.data import DataLoader, Dataset
 
 from signlane.lanes.seg_model import DEFAULT_SPEC, mask_target, preprocess_frames
 from signlane.onnx_model import InputSpec
+from signlane_train.common import seed_worker
 
 IMAGE_EXT = (".jpg", ".jpeg", ".png", ".bmp")
 
@@ -34,24 +35,25 @@ class Item:
 
 def list_frames(roots: list[Path]) -> list[Item]:
     """(image, mask) pairs of every folder: from labels.jsonl when present, else images/<stem>.*
-    paired with masks/<stem>.png. A folder with neither is an error."""
+    paired with masks/<stem>.png. A folder with neither, or with no frames (an autolabel run that
+    kept none), is an error: mixing in an empty set silently would train on less than asked."""
     items: list[Item] = []
     for root in map(Path, roots):
         labels = root / "labels.jsonl"
         if labels.is_file():
-            for line in labels.read_text().splitlines():
-                if line.strip():
-                    rec = json.loads(line)
-                    items.append(Item(root / rec["image"], root / rec["mask"], f"{root.name}/{rec['id']}"))
+            found = [json.loads(line) for line in labels.read_text().splitlines() if line.strip()]
+            own = [Item(root / rec["image"], root / rec["mask"], f"{root.name}/{rec['id']}") for rec in found]
+            why = "labels.jsonl lists no frames"
         elif (root / "images").is_dir() and (root / "masks").is_dir():
-            for img in sorted((root / "images").iterdir()):
-                m = root / "masks" / f"{img.stem}.png"
-                if img.suffix.lower() in IMAGE_EXT and m.is_file():
-                    items.append(Item(img, m, f"{root.name}/{img.stem}"))
+            own = [Item(img, root / "masks" / f"{img.stem}.png", f"{root.name}/{img.stem}")
+                   for img in sorted((root / "images").iterdir())
+                   if img.suffix.lower() in IMAGE_EXT and (root / "masks" / f"{img.stem}.png").is_file()]
+            why = "no images/<stem> has a masks/<stem>.png"
         else:
             raise ValueError(f"{root}: not a lane dataset (needs labels.jsonl, or images/ and masks/)")
-    if not items:
-        raise ValueError(f"no frames with masks found under {', '.join(map(str, roots))}")
+        if not own:
+            raise ValueError(f"{root}: an empty training set ({why}); leave it out or fill it")
+        items += own
     return items
 
 
@@ -125,7 +127,7 @@ class LaneDataModule(L.LightningDataModule):
 
     def train_dataloader(self) -> DataLoader:
         return DataLoader(FrameDataset(self.train_items, self.spec, train_augment(self.seed)),
-                          batch_size=self.batch_size, shuffle=True, num_workers=self.workers,
+                          worker_init_fn=seed_worker, batch_size=self.batch_size, shuffle=True, num_workers=self.workers,
                           persistent_workers=self.workers > 0,
                           drop_last=len(self.train_items) > 2 * self.batch_size)
 

@@ -11,7 +11,7 @@ import torch
 import torch.nn.functional as F
 from torchmetrics.classification import BinaryF1Score, BinaryJaccardIndex
 
-from train.lane_net import LaneSegNet
+from signlane_train.lane_net import LaneSegNet
 
 
 def dice_loss(logits: torch.Tensor, target: torch.Tensor, eps: float = 1.0) -> torch.Tensor:

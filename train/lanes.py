@@ -12,10 +12,11 @@ import torch
 from signlane.eval_masks import MaskCounts
 from signlane.fileio import atomic_write_text
 from signlane.lanes.seg_model import DEFAULT_SPEC, marking_probability, preprocess_frames, to_frame_mask
-from train.common import ScaleOut, build_trainer, resume_path, save_run_config
-from train.lane_data import FrameDataset, LaneDataModule, read_pair
-from train.lane_net import count_parameters
-from train.lane_task import LaneTask
+from signlane_train.common import ScaleOut, build_trainer, resume_path, save_run_config
+from signlane_train.lane_data import FrameDataset, LaneDataModule, read_pair
+from signlane_train.lane_net import count_parameters
+from signlane_train.lane_task import LaneTask
+from signlane_train.run_info import RunInfo
 
 log = logging.getLogger(__name__)
 
@@ -23,12 +24,13 @@ log = logging.getLogger(__name__)
 def train_lanes(data: list[str | Path], out: str | Path, epochs: int = 15, batch_size: int = 32, lr: float = 4e-3,
                 width: int = 16, val_fraction: float = 0.1, patience: int = 5, seed: int = 0, resume: bool = False,
                 scale: ScaleOut = ScaleOut(), workers: int = 1, quiet: bool = False, pos_weight: float = 4.0,
-                eval_frames: int = 300, threads: int = 0, deterministic: bool = False) -> dict:
+                eval_frames: int = 300, threads: int = 0, deterministic: bool = True) -> dict:
     """Train; writes checkpoints/, logs/, tensorboard/, samples/epoch_<k>.png, config.json and
     report.json (the best checkpoint's val scores).
     threads > 0 caps torch's CPU threads: on a busy machine one thread trains several times faster
-    than threads that wait for each other on shared cores. deterministic asks torch for
-    deterministic algorithms (the same seed then repeats a run exactly, on GPUs too)."""
+    than threads that wait for each other on shared cores. deterministic (the default) asks torch
+    for deterministic algorithms, so the same seed repeats a run exactly (on GPUs too). Every
+    checkpoint carries the data's content hash and its validation scores, for export."""
     import lightning as L
     out = Path(out)
     if threads > 0:
@@ -42,13 +44,14 @@ def train_lanes(data: list[str | Path], out: str | Path, epochs: int = 15, batch
     val = FrameDataset(dm.val_items[:8], DEFAULT_SPEC)
     task.sample_batch = (torch.stack([val[i][0] for i in range(len(val))]),
                          torch.stack([val[i][1] for i in range(len(val))]))
-    save_run_config(out, {"task": "lanes", "data": [str(d) for d in data], "epochs": epochs,
+    info = RunInfo(data)
+    save_run_config(out, {"task": "lanes", "data": info.data, "data_hash": info.data_hash, "epochs": epochs,
                           "batch_size": batch_size, "lr": lr, "width": width, "pos_weight": pos_weight,
                           "val_fraction": val_fraction, "seed": seed, "deterministic": deterministic,
                           "input": [DEFAULT_SPEC.width, DEFAULT_SPEC.height],
                           "parameters": count_parameters(task.net), "train_frames": len(dm.train_items),
                           "val_frames": len(dm.val_items), "threads": threads, "scale_out": scale.__dict__})
-    trainer, ckpt = build_trainer(out, epochs, "val/iou", "max", patience, scale, quiet=quiet,
+    trainer, ckpt = build_trainer(out, epochs, "val/iou", "max", patience, scale, [info], quiet=quiet,
                                   deterministic=deterministic)
     t0 = time.perf_counter()
     trainer.fit(task, datamodule=dm, ckpt_path=ckpt_path)

@@ -19,6 +19,7 @@ from torch.utils.data import DataLoader, Dataset
 from signlane.onnx_model import InputSpec
 from signlane.signs.classifier import DEFAULT_SPEC, preprocess_crops
 from signlane.world.art import SIGN_CLASSES
+from signlane_train.common import seed_worker
 
 IMAGE_EXT = {".png", ".jpg", ".jpeg", ".bmp"}
 
@@ -110,7 +111,8 @@ class SignDataModule(L.LightningDataModule):
 
     def train_dataloader(self) -> DataLoader:
         return DataLoader(CropDataset(self.train_items, self.spec, train_augment(self.augment, self.seed)),
-                          batch_size=self.batch_size, shuffle=True, num_workers=self.workers, persistent_workers=self.workers > 0,
+                          worker_init_fn=seed_worker, batch_size=self.batch_size, shuffle=True,
+                          num_workers=self.workers, persistent_workers=self.workers > 0,
                           drop_last=len(self.train_items) > 2 * self.batch_size)
 
     def val_dataloader(self) -> DataLoader:

@@ -7,7 +7,7 @@ from torch import nn
 from torchmetrics.classification import MulticlassAccuracy, MulticlassConfusionMatrix, MulticlassF1Score, MulticlassRecall
 
 from signlane.world.art import SIGN_CLASSES
-from train.sign_net import SignNet
+from signlane_train.sign_net import SignNet
 
 
 class SignTask(L.LightningModule):
@@ -53,6 +53,8 @@ class SignTask(L.LightningModule):
         self.log("val/f1", self.val_f1.compute())
         for name, r in zip(SIGN_CLASSES, self.val_recall.compute()):
             self.log(f"val/recall_{name}", r)
+            if name == "unknown":  # the costly mistake on the car: a non-sign taken for a sign
+                self.log("val/non_sign_accepted", 1.0 - r)
         self.confusion = self.val_confusion.compute().cpu()
         for m in (self.val_acc, self.val_f1, self.val_recall, self.val_confusion):
             m.reset()

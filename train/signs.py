@@ -11,9 +11,10 @@ import torch
 
 from signlane.draw import contact_sheet, write_image
 from signlane.world.art import SIGN_CLASSES
-from train.common import ScaleOut, build_trainer, resume_path, save_run_config
-from train.sign_data import CropDataset, SignDataModule
-from train.sign_task import SignTask
+from signlane_train.common import ScaleOut, build_trainer, resume_path, save_run_config
+from signlane_train.run_info import RunInfo
+from signlane_train.sign_data import CropDataset, SignDataModule
+from signlane_train.sign_task import SignTask
 
 log = logging.getLogger(__name__)
 
@@ -22,13 +23,14 @@ def train_signs(data: list[str | Path], out: str | Path, epochs: int = 20, batch
                 size: int = 32, val_fraction: float = 0.1, patience: int = 6, seed: int = 0, resume: bool = False,
                 scale: ScaleOut = ScaleOut(), workers: int = 0, quiet: bool = False, width: int = 16,
                 class_weights: str = "sqrt", threads: int = 0, augment: float = 1.0,
-                deterministic: bool = False) -> dict:
+                deterministic: bool = True) -> dict:
     """Train; writes checkpoints/, logs/, tensorboard/, config.json, confusion.png, errors_<class>.png.
     class_weights 'sqrt' weighs the loss by square-root inverse class frequency; 'none' weighs every
     crop alike, so the many 'unknown' crops pull harder against taking a non-sign for a sign.
     threads > 0 caps torch's CPU threads (see train_lanes); augment (0..1) scales how often each
-    training augmentation is applied; deterministic asks torch for deterministic algorithms (the
-    same seed then repeats a run exactly, on GPUs too)."""
+    training augmentation is applied; deterministic (the default) asks torch for deterministic
+    algorithms, so the same seed repeats a run exactly (on GPUs too). Every checkpoint carries the
+    data's content hash and its validation scores (signlane_train.run_info), for export."""
     if class_weights not in ("sqrt", "none"):
         raise ValueError(f"class_weights must be 'sqrt' or 'none', not {class_weights!r}")
     if not 0.0 <= augment <= 1.0:
@@ -46,14 +48,15 @@ def train_signs(data: list[str | Path], out: str | Path, epochs: int = 20, batch
     dm.setup()
     weights = dm.class_weights().tolist() if class_weights == "sqrt" else None
     task = SignTask(size=size, lr=lr, epochs=epochs, class_weights=weights, width=width)
-    save_run_config(out, {"task": "signs", "data": [str(d) for d in data], "epochs": epochs,
+    info = RunInfo(data)
+    save_run_config(out, {"task": "signs", "data": info.data, "data_hash": info.data_hash, "epochs": epochs,
                           "batch_size": batch_size, "lr": lr, "size": size, "width": width, "class_weights": class_weights,
                           "augment": augment,
                           "val_fraction": val_fraction, "workers": workers, "threads": threads,
                           "seed": seed, "deterministic": deterministic, "train_crops": len(dm.train_items),
                           "val_crops": len(dm.val_items),
                           "scale_out": scale.__dict__})
-    trainer, ckpt = build_trainer(out, epochs, "val/acc", "max", patience, scale, quiet=quiet,
+    trainer, ckpt = build_trainer(out, epochs, "val/acc", "max", patience, scale, [info], quiet=quiet,
                                   deterministic=deterministic)
     t0 = time.perf_counter()
     trainer.fit(task, datamodule=dm, ckpt_path=ckpt_path)

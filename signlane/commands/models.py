@@ -1,6 +1,7 @@
-"""`signlane train`, `export`, `classify` and `autolabel`: the learned models."""
+"""`signlane train`, `export`, `ship`, `classify` and `autolabel`: the learned models."""
 from __future__ import annotations
 
+import argparse
 import json
 import sys
 from pathlib import Path
@@ -75,16 +76,16 @@ def _add_cpu_args(p, workers: int) -> None:
                    help=f"data-loader worker processes: augmentation beside the training step (default {workers})")
     p.add_argument("--threads", type=int, default=0,
                    help="torch CPU threads (default 0 = torch's choice; 1 is fastest on a busy machine)")
-    p.add_argument("--deterministic", action="store_true",
-                   help="deterministic torch algorithms, so the same --seed repeats a run exactly (slower on GPUs; "
-                        "augmentations follow --seed either way)")
+    p.add_argument("--deterministic", action=argparse.BooleanOptionalAction, default=True,
+                   help="deterministic torch algorithms (default on), so the same --seed repeats a run exactly; "
+                        "--no-deterministic may be faster on GPUs (augmentations follow --seed either way)")
 
 
 def _run_train(args) -> int:
     try:
-        from train.common import ScaleOut
-        from train.lanes import train_lanes
-        from train.signs import train_signs
+        from signlane_train.common import ScaleOut
+        from signlane_train.lanes import train_lanes
+        from signlane_train.signs import train_signs
     except ImportError as e:
         raise UserError(f"training needs the train extra (pip install 'signlane[train]'): {e}") from None
     shared = dict(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr, width=args.width,
@@ -121,15 +122,20 @@ def add_export(sub) -> None:
 
 
 def _run_export(args) -> int:
+    from signlane.ship import in_models_dir
+    if in_models_dir(args.out):  # an editable install would make every later command use it, unasked
+        raise UserError(f"--out {args.out}: export does not write into the shipped models' folder; export to "
+                        f"runs/ or out/, then `signlane ship FILE.onnx --as {args.kind}`")
     if args.kind == "lanes":
         return _run_export_lanes(args)
     try:
-        from export.signs import export_signs
+        from signlane_export.onnx_export import ExportError
+        from signlane_export.signs import export_signs
     except ImportError as e:
         raise UserError(f"export needs the train extra (pip install 'signlane[train]'): {e}") from None
     try:
         report = export_signs(args.ckpt, args.out, int8=args.int8)
-    except (ValueError, OSError) as e:
+    except (ValueError, OSError, ExportError) as e:
         raise UserError(str(e)) from None
     print(json.dumps(report, indent=1))
     return 0
@@ -137,13 +143,35 @@ def _run_export(args) -> int:
 
 def _run_export_lanes(args) -> int:
     try:
-        from export.lanes import export_lanes
-        from export.onnx_export import ExportError
+        from signlane_export.lanes import export_lanes
+        from signlane_export.onnx_export import ExportError
     except ImportError as e:
         raise UserError(f"export needs the train extra (pip install 'signlane[train]'): {e}") from None
     try:
         report = export_lanes(args.ckpt, args.out)
     except (ValueError, OSError, ExportError) as e:
+        raise UserError(str(e)) from None
+    print(json.dumps(report, indent=1))
+    return 0
+
+
+def add_ship(sub) -> None:
+    p = sub.add_parser("ship", help="make an exported model the default one (signlane/models/)",
+                       description="Check an exported ONNX model as the runtime loads it (contract, graph, a test "
+                                   "batch) and copy it over the shipped default, signlane/models/<kind>.onnx, that "
+                                   "infer, drive, sim and demo use. Recipes never write there themselves. Update "
+                                   "the model card (<kind>.json beside it) to match.")
+    p.add_argument("model", type=Path, help="exported ONNX file (e.g. runs/signs/signs.onnx)")
+    p.add_argument("--as", dest="kind", required=True, choices=["signs", "lanes"], help="which default it replaces")
+    p.add_argument("--into", type=Path, help="models folder (default: the package's signlane/models)")
+    p.set_defaults(func=_run_ship)
+
+
+def _run_ship(args) -> int:
+    from signlane.ship import MODELS_DIR, ShipError, ship_model
+    try:
+        report = ship_model(args.model, args.kind, args.into or MODELS_DIR)
+    except (ShipError, OSError) as e:
         raise UserError(str(e)) from None
     print(json.dumps(report, indent=1))
     return 0
@@ -212,7 +240,8 @@ def _add_autolabel_lanes(kinds) -> None:
     lanes.add_argument("--out", type=Path, required=True, help="output folder (new or empty)")
     lanes.add_argument("--method", default="sliding-window", help="lane method (default sliding-window)")
     lanes.add_argument("--min-confidence", type=float, default=0.7,
-                       help="keep frames whose lane confidence reaches this (default 0.7)")
+                       help="keep frames whose lane confidence reaches this (default 0.7); keeping none is "
+                            "exit code 1")
     lanes.add_argument("--every", type=positive, default=10, help="every Nth video frame (default 10)")
     lanes.add_argument("--config", type=Path, help="TOML config file (the camera section matters)")
     lanes.add_argument("--set", dest="overrides", action="append", default=[], metavar="SECTION.KEY=VALUE",
@@ -233,8 +262,8 @@ def _run_autolabel(args) -> int:
 
 
 def _run_autolabel_lanes(args) -> int:
-    from data_gen.autolabel_lanes import autolabel_lanes
-    from data_gen.common import DatasetError
+    from signlane_data.autolabel_lanes import autolabel_lanes
+    from signlane_data.common import DatasetError
     from signlane.config import Config
     from signlane.onnx_model import ModelError
     try:
@@ -243,4 +272,10 @@ def _run_autolabel_lanes(args) -> int:
     except (ValueError, ModelError, DatasetError) as e:
         raise UserError(str(e)) from None
     print(json.dumps({"out": str(args.out), "counts": report["counts"], "method": args.method}))
+    if report["counts"]["kept"] == 0:  # an empty set must not pass for a dataset: say so, exit 1
+        print(f"signlane autolabel: kept none of the {report['counts']['seen']} frames (no lane found with "
+              f"confidence >= {args.min_confidence}); {args.out} is no training set: see "
+              f"{args.out / 'rejected.png'}, check the camera (--set camera.*) or lower --min-confidence",
+              file=sys.stderr)
+        return 1
     return 1 if report["failed"] else 0

@@ -65,7 +65,9 @@ def add_sim(sub) -> None:
     p.add_argument("--report", type=Path, help="write the score as JSON here")
     p.add_argument("--out", type=Path, help="folder for report.json, path.png (top-down driven path)"
                                              " and, with --video, drive.mp4")
-    p.add_argument("--video", action="store_true", help="with --out: drive.mp4, the frames with the command (and, in process, what the driver saw)")
+    p.add_argument("--video", action="store_true",
+                   help="with --out: drive.mp4 (H.264), the frames with the command and, with --with-driver, what "
+                        "the driver saw (lanes, sign boxes, state), as `demo` draws it")
     p.add_argument("--lanes", help="lane method for --with-driver (default from the config)")
     p.add_argument("--no-signs", action="store_true", help="--with-driver without the sign stage")
     p.add_argument("--config", type=Path, help="TOML config for --with-driver")

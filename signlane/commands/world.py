@@ -53,7 +53,7 @@ def add_gen(sub) -> None:
 
 
 def _run_gen(args) -> int:
-    from data_gen.common import DatasetError
+    from signlane_data.common import DatasetError
     try:
         return _gen(args)
     except DatasetError as e:
@@ -62,17 +62,17 @@ def _run_gen(args) -> int:
 
 def _gen(args) -> int:
     if args.kind == "lanes":
-        from data_gen.lanes import generate_lanes
+        from signlane_data.lanes import generate_lanes
         m = generate_lanes(args.out, args.n, args.seed, width=args.size[0], height=args.size[1],
                            workers=args.workers, resume=args.resume, preview=args.preview,
                            effects=args.effects, randomise=args.randomise, drivable=args.drivable,
                            preset=args.preset, style=args.style or "painted")
     elif args.kind == "signs":
-        from data_gen.signs import generate_signs
+        from signlane_data.signs import generate_signs
         m = generate_signs(args.out, args.n, args.seed, crop=args.crop, workers=args.workers,
                            resume=args.resume, preview=args.preview, style=args.style or "painted")
     else:
-        from data_gen.drive import generate_drive
+        from signlane_data.drive import generate_drive
         m = generate_drive(args.out, args.n, args.seed, width=args.size[0], height=args.size[1], fps=args.fps,
                            resume=args.resume, preview=args.preview, style=args.style or "via")
     print(json.dumps({"out": str(args.out), "counts": m.get("counts")}))

@@ -11,9 +11,10 @@ import numpy as np
 from tqdm import tqdm
 
 from signlane.config import Config
-from signlane.draw import VideoOut, draw_boxes, draw_hud, draw_lane, write_image
+from signlane.draw import draw_boxes, draw_hud, draw_lane, write_image
 from signlane.fileio import atomic_write_json
 from signlane.sim.simulator import SimConfig, Simulator, run_client, run_inprocess
+from signlane.video_out import VideoOut
 from signlane.world.topdown import draw_topdown
 from signlane.world.track import Track
 
@@ -31,6 +32,37 @@ def annotate_drive(image: np.ndarray, perception, command, speed: float, t: floa
     return out
 
 
+class SeenByDriver:
+    """Builds the drive server's drivers and keeps the newest frame's (perception, command), so a
+    video of a run through the server (`sim --with-driver --video`) shows what the driver saw,
+    as the in-process demo's does: neither is on the wire."""
+
+    def __init__(self, config: Config, sync_signs: bool):
+        self.config, self.sync_signs = config, sync_signs
+        self.latest = (None, None)  # set on a server thread, read by the simulator's: one assignment
+
+    def __call__(self) -> "_Tapped":
+        from signlane.sim.driver import Driver
+        return _Tapped(Driver(self.config, sync_signs=self.sync_signs), self)
+
+
+class _Tapped:
+    """A Driver whose every step is also handed to its SeenByDriver."""
+
+    def __init__(self, driver, seen: SeenByDriver):
+        self.driver, self.seen = driver, seen
+
+    def step(self, telemetry, now: float | None = None):
+        self.seen.latest = result = self.driver.step(telemetry, now)
+        return result
+
+    def close(self) -> None:
+        self.driver.close()
+
+    def __getattr__(self, name):
+        return getattr(self.driver, name)
+
+
 def run_session(track: Track, sim_config: SimConfig, out: Path | None, config: Config | None = None,
                 url: str | None = None, lockstep: bool = True, with_driver: bool = False,
                 video: bool = False, show_progress: bool = True) -> dict:
@@ -44,10 +76,14 @@ def run_session(track: Track, sim_config: SimConfig, out: Path | None, config: C
         # an uncapped run has no frame rate of its own: play it at 30 frames/s
         writer = VideoOut(out / "drive.mp4", sim_config.fps or 30.0, (sim_config.width, sim_config.height))
 
+    seen = SeenByDriver(config, lockstep) if with_driver and writer is not None else None
+
     def progress(s, cmd, perception):
         bar.n = s.course.laps
         bar.set_postfix_str(f"t={s.t:.0f}s off={s.score.offroad_events}", refresh=s.frame % 20 == 0)
         if writer is not None:
+            if seen is not None and seen.latest[0] is not None:
+                perception, cmd = seen.latest
             writer.write(annotate_drive(s.last_image, perception, cmd, s.vehicle.speed, s.t))
 
     t0 = time.perf_counter()
@@ -59,7 +95,9 @@ def run_session(track: Track, sim_config: SimConfig, out: Path | None, config: C
                 rep["decisions"] = driver.behaviour.decisions  # what the driver saw at each junction
         elif with_driver:
             from signlane.sim.server import DriveServer, ServerOptions
-            with DriveServer(config, ServerOptions(port=0, sync_signs=lockstep)) as srv:
+            with DriveServer(config, ServerOptions(port=0, sync_signs=lockstep), driver_factory=seen) as srv:
+                if seen is not None:
+                    seen.latest = (None, None)  # the server's start-up probe drove a blank frame
                 rep = run_client(sim, srv.url, lockstep, progress)
         else:
             rep = run_client(sim, url, lockstep, progress)
