@@ -80,6 +80,7 @@ class Behaviour:
         self.decisions: list[dict] = []  # each junction planned: what was seen, what sign, which turn
         self._dead: dict[str, bool] = {}  # dead-end verdicts of the openings ahead (see _remember_dead_ends)
         self._votes: dict[str, list[int]] = {}  # per way: [frames judging it dead, frames judging it not]
+        self._dead_seen_m = -1e9  # odometer at the last frame with an opening
         self._plan: dict | None = None  # the last junction plan, while it may still be made again
         self._epoch = 0  # junctions passed
         self.signs: list[SignMemory] = []
@@ -221,7 +222,7 @@ class Behaviour:
         if seen:
             verdicts.append(("straight", j.straight_dead))
             self._dead_seen_m = odo_m
-        elif odo_m - getattr(self, "_dead_seen_m", -1e9) > self.p.dead_memory_m:
+        elif odo_m - self._dead_seen_m > self.p.dead_memory_m:
             self._votes = {}
         for name, dead in verdicts:
             if dead is not None:
@@ -255,23 +256,23 @@ class Behaviour:
         if lane.found and abs(lane.heading) > self.p.aligned_rad and near > self.p.commit_late_m:
             return False  # still turning out of a bend (or a lane shift): what it sees of the junction is askew
         y_c = float(np.mean([o.centre_m for o in side]))
-        sign = self._instruction(pose, max(o.far_m for o in side))
+        far = max(o.far_m for o in side)
+        sign = self._instruction(pose, far)
         self.turn = self.choose(exits, sign.label if sign else None)
         if sign is not None:
             sign.done = True
         self.decisions.append({"odo_m": round(odo_m, 1), "exits": sorted(exits), "sign": sign.label if sign else None,
                                "turn": self.turn, "near_m": round(near, 1),
                                "dead": sorted(n for n, d in self._dead.items() if d)})
-        far = max(o.far_m for o in side)
         self._plan = {"odo_m": odo_m, "until_m": odo_m + max(near - self.p.replan_margin_m, 0.0), "far_m": far,
                       "sign": sign.label if sign else None, "turn": self.turn}
-        if self.turn == "straight" and not getattr(self, "two_lane", True):
+        if self.turn == "straight" and not self.two_lane:
             # a kerbed carriageway's edges carry on across a junction (the far edge stands in
             # for the open one): keep following it, and judge no junction until past this one
-            self.cooldown_until_m = odo_m + max(o.far_m for o in side) + 1.0
+            self.cooldown_until_m = odo_m + far + 1.0
             return False
         lateral = -lane.offset * (lane.lane_width_m or self.p.lane_width_m) if lane.found else 0.0
-        path = _junction_path(self.turn, y_c, lateral, self.p, getattr(self, "two_lane", True))
+        path = _junction_path(self.turn, y_c, lateral, self.p, self.two_lane)
         if lane.found:  # laid along the road, not along the car (heading > 0: the car points right of it)
             path = _rotate(path, lane.heading)
         self.path = pose.to_world(path)

@@ -163,6 +163,10 @@ VIA_VFOV_DEG = 60.0
 VIA_HEIGHT_M = 2.9
 VIA_PITCH_DEG = 11.8
 VIA_CAMERA_FORWARD_M = 0.1  # ahead of the car's origin
+VIA_WHEELBASE_M = 1.957  # the car's origin is midway along it
+# what the car steers about (its rear axle) to the camera: VIA's car turns about a point this far
+# behind what its camera measures from
+VIA_CAMERA_AHEAD_OF_AXLE_M = VIA_CAMERA_FORWARD_M + VIA_WHEELBASE_M / 2
 
 
 def hfov_for_vfov(vfov_deg: float, width: int, height: int) -> float:
@@ -177,6 +181,14 @@ def via_camera(width: int = 640, height: int = 480) -> Camera:
 @lru_cache(maxsize=64)
 def _ground_mask(camera: Camera, margin_px: float) -> np.ndarray:
     return camera._ground_mask(margin_px)
+
+
+@lru_cache(maxsize=32)
+def _visible(bev: "BirdsEye") -> np.ndarray:
+    cam = bev.camera
+    mask = bev.warp(np.full((cam.height, cam.width), 255, np.uint8), cv2.INTER_NEAREST)
+    mask.setflags(write=False)  # shared by every caller
+    return mask
 
 
 @dataclass(frozen=True)
@@ -201,6 +213,11 @@ class BirdsEye:
 
     def bev_to_image_h(self) -> np.ndarray:
         return self.camera.ground_to_image_h() @ self.bev_to_ground_a()
+
+    def visible(self) -> np.ndarray:
+        """uint8 (h, w) read-only: 255 where the camera sees the ground. Fixed per view, so made
+        once (every lane method and the junction detector ask for it each frame)."""
+        return _visible(self)
 
     def warp(self, image: np.ndarray, interpolation: int = cv2.INTER_LINEAR) -> np.ndarray:
         """Camera image (H,W[,C], any dtype) -> bird's-eye image (size[1], size[0][,C])."""

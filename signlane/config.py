@@ -11,7 +11,7 @@ from dataclasses import asdict, dataclass, field, fields, is_dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from signlane.camera import Camera
+from signlane.camera import VIA_CAMERA_AHEAD_OF_AXLE_M, VIA_WHEELBASE_M, Camera
 
 
 @dataclass(frozen=True)
@@ -27,7 +27,7 @@ class CameraConfig:
     # where the camera stands ahead of the car's rear axle (what the car steers about): what the
     # camera measures is this much further from the axle. VIA: 0.1 m ahead of the car's origin,
     # midway along its 1.957 m wheelbase
-    forward_m: float = 1.08
+    forward_m: float = round(VIA_CAMERA_AHEAD_OF_AXLE_M, 2)  # to the centimetre
 
     def camera(self, width: int = 320, height: int = 240) -> Camera:
         return Camera(width, height, self.hfov_deg, self.height_m, self.pitch_deg, self.roll_deg)
@@ -75,7 +75,7 @@ class DriveConfig:
     # so 0.4 is below it at every speed: the planned stop comes early, never late, with margin
     # for the rolling estimate and a reply applied a frame late.
     coast_decel: float = 0.4
-    wheelbase_m: float = 1.957  # VIA's car; for odometry and path following
+    wheelbase_m: float = VIA_WHEELBASE_M  # VIA's car; for odometry and path following
     sign_size_m: float = 1.25  # sign face height, for the distance to a sign (VIA's: 1.25 m)
     # a square face seen at angle a is cos(a) as wide as tall: narrower than this, it faces
     # another road's traffic (0.55: more than about 57 degrees away)

@@ -79,8 +79,7 @@ class JunctionDetector:
         p = self.p
         size = (int(2 * p.x_half_m * p.px_per_m), int((p.y_range_m[1] - p.y_range_m[0]) * p.px_per_m))
         self.bev: BirdsEye = camera.birdseye(size, (-p.x_half_m, p.x_half_m), p.y_range_m)
-        ones = np.full((camera.height, camera.width), 255, np.uint8)
-        self.visible = self.bev.warp(ones, cv2.INTER_NEAREST) > 0
+        self.visible = self.bev.visible() > 0
         self.camera = camera
         self._bands: dict[tuple, tuple[np.ndarray, ...]] = {}  # image rows and columns of each edge band
         # visible bird's-eye pixels beyond outer_m to either side (fixed per camera)
@@ -284,14 +283,20 @@ def _in_line(scan, near_m: float, far_m: float, p: ScanJunctionParams) -> np.nda
     """Rows past a junction (y > far_m) whose two edges carry on the lines the edges ran along
     before it (their last 3 m before near_m): the road goes on straight. A bend's edges do not."""
     both = scan.ok_l & scan.ok_r
-    before = both & (scan.y < near_m) & (scan.y > near_m - 3.0)
     out = both & (scan.y > far_m)
-    if before.sum() < 4:
-        return out  # nothing to compare with: the edges being found must do
     for edge in (scan.edge_l, scan.edge_r):
-        line = np.polyfit(scan.y[before], edge[before], 1)
+        line = _line_before(scan, edge, both, near_m)
+        if line is None:
+            return out  # nothing to compare with: the edges being found must do
         out &= np.abs(edge - np.polyval(line, scan.y)) < p.in_line_m
     return out
+
+
+def _line_before(scan, edge: np.ndarray, ok: np.ndarray, near_m: float) -> np.ndarray | None:
+    """The straight line (np.polyfit coefficients) an edge ran along over its rows `ok` in the
+    3 m before near_m, or None with fewer than 4 of them."""
+    before = ok & (scan.y < near_m) & (scan.y > near_m - 3.0)
+    return np.polyfit(scan.y[before], edge[before], 1) if before.sum() >= 4 else None
 
 
 def _verge_colour(scan, near_m: float) -> np.ndarray | None:
@@ -342,9 +347,8 @@ def _opening(scan, rows: np.ndarray, beyond: np.ndarray, view: np.ndarray, ok: n
     resumed = bool(len(after) and scan.y[group[-1] + 1 + after[0]] - far <= p.resume_m)
     if resumed:  # and back in line with the edge before the opening: a side road, not a bend
         edge = scan.edge_r if sgn > 0 else scan.edge_l
-        before = ok & (scan.y < near) & (scan.y > near - 3.0)
-        if before.sum() >= 4:
-            line = np.polyfit(scan.y[before], edge[before], 1)
+        line = _line_before(scan, edge, ok, near)
+        if line is not None:
             i = group[-1] + 1 + after[0]
             resumed = abs(float(edge[i] - np.polyval(line, scan.y[i]))) < p.in_line_m
     return near, far, resumed, _dead_end(scan, group, beyond, view, p, sgn)

@@ -10,7 +10,7 @@ import cv2
 import numpy as np
 import pytest
 
-from signlane_data import lanes as lanes_mod
+from gen_helpers import generate_lanes_killed_at
 from signlane_data.common import (DatasetError, atomic_write_bytes, chunked, prepare_output, run_indexed, sample_id)
 from signlane_data.drive import generate_drive
 from signlane_data.lanes import generate_lanes, teacher_steering
@@ -120,17 +120,7 @@ def test_teacher_steering_signs() -> None:
 
 def test_lanes_resume_after_interruption(lanes_ref: Path, tmp_path: Path, monkeypatch) -> None:
     out = tmp_path / "killed"
-    real_call = lanes_mod.LaneJob.__call__
-
-    def dies_at_7(self, i):
-        if i == 7:
-            raise RuntimeError("killed")
-        real_call(self, i)
-
-    monkeypatch.setattr(lanes_mod.LaneJob, "__call__", dies_at_7)
-    with pytest.raises(RuntimeError, match="killed"):
-        generate_lanes(out, N_LANES, seed=7, **LANE_KW)
-    monkeypatch.setattr(lanes_mod.LaneJob, "__call__", real_call)
+    generate_lanes_killed_at(out, 7, monkeypatch, N_LANES, seed=7, **LANE_KW)
     assert not (out / "manifest.json").exists()
     (out / "images" / "000003.jpg").unlink()
     (out / "masks" / ".000005.png.999.tmp").write_bytes(b"half a png")

@@ -7,7 +7,7 @@ import pytest
 
 from signlane import lanes
 from signlane.behaviour import Behaviour, _junction_path, BehaviourParams
-from signlane.camera import Camera, via_camera
+from signlane.camera import via_camera
 from signlane.config import Config
 from signlane.junction import JunctionDetector, view_from_scan
 from signlane.odometry import Odometry

@@ -2,7 +2,6 @@
 and a safe outcome (the drive server, infer, sim, config, media, training, dataset resume).
 
 New names are imported inside the tests, so each test fails on its own when its fix is missing."""
-import base64
 import json
 import logging
 import socket
@@ -18,6 +17,7 @@ import numpy as np
 import pytest
 from websockets.sync.client import connect
 
+from gen_helpers import generate_lanes_killed_at
 from signlane.cli import main
 from signlane.config import Config
 from signlane.sim.protocol import SAFE_COMMAND, encode_jpeg, encode_telemetry
@@ -581,16 +581,7 @@ def test_gen_resume_remakes_damaged_files(tmp_path, monkeypatch):
     from signlane_data import lanes as lanes_mod
     ref, out = tmp_path / "ref", tmp_path / "out"
     lanes_mod.generate_lanes(ref, 6, seed=3, width=160, height=120)
-    real = lanes_mod.LaneJob.__call__
-
-    def killed_at_5(self, i):
-        if i == 5:
-            raise RuntimeError("killed")
-        real(self, i)
-    monkeypatch.setattr(lanes_mod.LaneJob, "__call__", killed_at_5)
-    with pytest.raises(RuntimeError, match="killed"):
-        lanes_mod.generate_lanes(out, 6, seed=3, width=160, height=120)
-    monkeypatch.undo()
+    generate_lanes_killed_at(out, 5, monkeypatch, 6, seed=3, width=160, height=120)
     # frames 0-4 were written; a crash before the disk flushed them leaves damaged files
     image = out / "images" / "000002.jpg"
     image.write_bytes(image.read_bytes()[:200])

@@ -16,7 +16,7 @@ import numpy as np
 from signlane.camera import Camera
 from signlane.lanes import register
 from signlane.lanes.geometry import Boundary, camera_for, estimate_from_fits
-from signlane.lanes.road_edges import RoadEdgesParams, RoadEdgesState, carriageway, centre_path
+from signlane.lanes.road_edges import RoadEdgesParams, RoadEdgesState, carriageway, carriageway_estimate
 from signlane.lanes.sliding_window import SlidingWindowParams, SlidingWindowState, sliding_window
 from signlane.types import LaneEstimate
 
@@ -56,16 +56,14 @@ def auto(image_bgr: np.ndarray, camera: Camera | None, params: AutoParams,
         return LaneEstimate(NAME, False, debug_mask=np.zeros((h, w), np.uint8)), state
     cam = camera_for(image_bgr, camera)
     left, right, width, road_state, mask = carriageway(image_bgr, cam, params.road, state.road)
-    debug = mask if mask is not None else np.zeros((h, w), np.uint8)
     if not road_state.two_lane:
-        est = estimate_from_fits(NAME, cam, left, right, width, None, debug)
-        path = centre_path(road_state.scan) if est.found else None
-        return replace(est, basis="edges", path_m=path), AutoState(road_state, None)
+        return carriageway_estimate(NAME, cam, left, right, width, road_state, mask, (h, w)), AutoState(road_state, None)
     est, paint_state = sliding_window(image_bgr, cam, params.paint, state.paint)
     if est.found:
         return replace(est, method=NAME, basis="paint"), AutoState(road_state, paint_state)
     # no paint found this frame: the right half of the carriageway
     mid = None if left is None or right is None else Boundary((left.coeffs + right.coeffs) / 2, left.y_range)
+    debug = mask if mask is not None else np.zeros((h, w), np.uint8)
     est = estimate_from_fits(NAME, cam, mid, right, width / 2, 0.5 if mid is not None else None, debug)
     return replace(est, basis="edges"), AutoState(road_state, paint_state)
 

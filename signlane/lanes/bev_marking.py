@@ -28,9 +28,8 @@ def ego_birdseye(camera: Camera, x_half_m: float, depth_m: float, px_per_m: tupl
 
 
 def visible_mask(bev: BirdsEye) -> np.ndarray:
-    """uint8 (h, w) of the bird's-eye: 255 where the camera sees the ground."""
-    cam = bev.camera
-    return bev.warp(np.full((cam.height, cam.width), 255, np.uint8), cv2.INTER_NEAREST)
+    """uint8 (h, w) of the bird's-eye, read-only: 255 where the camera sees the ground."""
+    return bev.visible()
 
 
 def ridge_mask(bev_bgr: np.ndarray, valid: np.ndarray, ridge_px: int, rel: float, minimum: float,

@@ -178,7 +178,7 @@ def scan_geometry(cam: Camera, p: CannyScanParams) -> ScanGeometry:
     bev = cam.birdseye((w, n_rows), (-p.bev_half_width_m, p.bev_half_width_m), (y_near, y_far))
     rows = np.arange(n_rows - 2, 0, -4)  # near (bottom) to far (top)
     ys = bev.bev_to_ground(np.column_stack([np.zeros(len(rows)), rows]))[:, 1]
-    inside = bev.warp(np.full((cam.height, cam.width), 255, np.uint8), cv2.INTER_NEAREST)
+    inside = bev.visible()
     # the image border is a bright/black step in the bird's-eye: keep the top-hat off it
     kernel = cv2.getStructuringElement(cv2.MORPH_RECT, (_tophat_width(p) + 2, 1))
     valid = cv2.erode(inside, kernel, borderType=cv2.BORDER_CONSTANT, borderValue=0) > 0

@@ -58,6 +58,13 @@ def fit_boundary(points_m: np.ndarray, order: int = 2, weights: np.ndarray | Non
     return Boundary(coeffs, (y0, y1), len(pts))
 
 
+def slant(slope: float) -> float:
+    """1 / cos of the angle a curve runs at from straight ahead, from its slope dx/dy: what a
+    distance across it becomes measured sideways. Capped at a slope of 2 (63 degrees), beyond
+    which a fit's slope says more about its noise than about the road."""
+    return math.sqrt(1.0 + min(slope * slope, 4.0))
+
+
 def shifted(boundary: Boundary, dx_m: float) -> Boundary:
     """The same curve moved sideways by dx_m (right positive): the lane-width fallback.
 
@@ -65,7 +72,7 @@ def shifted(boundary: Boundary, dx_m: float) -> Boundary:
     sideways shift is the width over the cosine of its angle at its near end."""
     c = boundary.coeffs.copy()
     slope = float(np.polyval(np.polyder(c), boundary.y_range[0])) if len(c) > 1 else 0.0
-    c[-1] += dx_m * math.sqrt(1.0 + min(slope * slope, 4.0))
+    c[-1] += dx_m * slant(slope)
     return Boundary(c, boundary.y_range, 0)
 
 

@@ -22,7 +22,7 @@ import numpy as np
 
 from signlane.camera import BirdsEye, Camera
 from signlane.lanes import register
-from signlane.lanes.geometry import camera_for, estimate_from_fits, fit_boundary
+from signlane.lanes.geometry import camera_for, estimate_from_fits, fit_boundary, slant
 from signlane.types import LaneEstimate
 
 NAME = "road-edges"
@@ -211,8 +211,7 @@ def _slant(hist: list[float], rows: int = 6) -> float:
     ahead; about 1.3 on a 6 m bend, where a width laid along the row would fall 0.6 m short)."""
     if len(hist) < rows:
         return 1.0
-    slope = (hist[-1] - hist[-rows]) / (rows - 1)  # pixels across per row (rows and columns share a scale)
-    return float(np.sqrt(1.0 + min(slope * slope, 4.0)))
+    return slant((hist[-1] - hist[-rows]) / (rows - 1))  # pixels across per row: rows and columns share a scale
 
 
 def _follows(hist: list[float], x: float, tol: float, step: float) -> bool:
@@ -229,7 +228,7 @@ def carriageway(image_bgr: np.ndarray, cam: Camera, p: RoadEdgesParams, state: R
     """(left, right Boundary | None, width m, new state, road mask uint8 in the image or None)."""
     h, w = image_bgr.shape[:2]
     bev = _bev(cam, p, state)
-    visible = bev.warp(np.full((h, w), 255, np.uint8), cv2.INTER_NEAREST) > 0
+    visible = bev.visible() > 0
     road, bright, ref, lab_img = road_mask(bev.warp(image_bgr[:, :, :3]), visible, p, state.road_lab)
     scan = replace(scan_edges(road, visible, bev, p, state.width_m or p.width_m), lab=lab_img)
     left = _fit(np.column_stack([scan.run_l, scan.y])[scan.ok_l], p)
@@ -266,10 +265,16 @@ def road_edges(image_bgr: np.ndarray, camera: Camera | None, params: RoadEdgesPa
         return LaneEstimate(NAME, False, debug_mask=np.zeros((h, w), np.uint8), basis="edges"), state
     cam = camera_for(image_bgr, camera)
     left, right, width, new_state, mask = carriageway(image_bgr, cam, params, state)
-    debug = mask if mask is not None else np.zeros((h, w), np.uint8)
-    est = estimate_from_fits(NAME, cam, left, right, width, None, debug)
-    path = centre_path(new_state.scan) if est.found else None
-    return replace(est, basis="edges", path_m=path), new_state
+    return carriageway_estimate(NAME, cam, left, right, width, new_state, mask, (h, w)), new_state
+
+
+def carriageway_estimate(method: str, cam: Camera, left, right, width: float, state: RoadEdgesState,
+                         mask: np.ndarray | None, shape: tuple[int, int]) -> LaneEstimate:
+    """The whole carriageway as the lane (from carriageway()'s outputs), with its traced middle."""
+    debug = mask if mask is not None else np.zeros(shape, np.uint8)
+    est = estimate_from_fits(method, cam, left, right, width, None, debug)
+    path = centre_path(state.scan) if est.found else None
+    return replace(est, basis="edges", path_m=path)
 
 
 def _fit(g: np.ndarray, p: RoadEdgesParams):

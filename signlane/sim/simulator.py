@@ -33,7 +33,7 @@ from signlane.sim.vehicle import Vehicle, VehicleParams
 from signlane.types import Command
 from signlane.world.effects import Effects
 from signlane.world.render import Renderer
-from signlane.world.route import Pose, Route
+from signlane.world.route import Pose
 from signlane.world.scene import build_scene
 from signlane.world.track import Track
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from signlane.camera import VIA_WHEELBASE_M
 from signlane.odometry import bicycle_step
 from signlane.sim.protocol import MPS_PER_MPH
 from signlane.world.route import Pose
@@ -26,7 +27,7 @@ from signlane.world.route import Pose
 class VehicleParams:
     """VIA's car (CarRemoteControl.cs, CarController.cs, Car.prefab), except `rolling_decel_mps2`."""
 
-    wheelbase_m: float = 1.957
+    wheelbase_m: float = VIA_WHEELBASE_M
     max_wheel_deg: float = 25.0
     max_speed: float = 30.0 * MPS_PER_MPH  # 13.41 m/s: the cap, and what throttle is a fraction of
     pedal_on: float = 0.5  # the pedal VIA applies while below the target speed
