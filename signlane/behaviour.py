@@ -95,17 +95,35 @@ class Behaviour:
     def observe_signs(self, seen: list[tuple[str, np.ndarray]]) -> None:
         """Confirmed signs with positions in the odometry frame: merge into memory by place (a
         sign dealt with stays dealt with while it is still in view; a different sign at about
-        the same place, as dead reckoning drifts round a loop, is a new one)."""
-        for label, pos in seen:
-            if label not in TURN_SIGNS and label != "stop":
+        the same place, as dead reckoning drifts round a loop, is a new one). Signs seen in one
+        frame are different signs (a stop sign and a turn sign side by side): each memory takes
+        at most one of them, its own label first; a sign of another label takes over a memory
+        not yet dealt with (its confirmed class changed) only where no sign of its own was seen."""
+        taken: set[int] = set()
+        kept = [(label, np.asarray(pos, float)) for label, pos in seen if label in TURN_SIGNS or label == "stop"]
+        unmatched = []
+        for label, pos in kept:  # first each sign to a memory of its own label ...
+            m = self._nearest(pos, taken, lambda m: m.label == label)
+            if m is None:
+                unmatched.append((label, pos))
                 continue
-            near = [m for m in self.signs if np.hypot(*(m.pos - pos)) < 6.0 and (m.label == label or not m.done)]
-            if near:
-                m = near[0]
-                if not m.done:
-                    m.pos, m.label, m.epoch = pos, label, self._epoch  # closer views place it better
+            taken.add(id(m))
+            if not m.done:
+                m.pos, m.epoch = pos, self._epoch  # closer views place it better
+        for label, pos in unmatched:  # ... then to one whose class it replaces, or a new one
+            m = self._nearest(pos, taken, lambda m: not m.done)
+            if m is None:
+                m = SignMemory(label, pos, epoch=self._epoch)
+                self.signs.append(m)
             else:
-                self.signs.append(SignMemory(label, np.asarray(pos, float), epoch=self._epoch))
+                m.pos, m.label, m.epoch = pos, label, self._epoch
+            taken.add(id(m))
+
+    def _nearest(self, pos: np.ndarray, taken: set[int], ok) -> SignMemory | None:
+        """The nearest remembered sign within 6 m of pos that no sign of this frame has taken."""
+        near = [(float(np.hypot(*(m.pos - pos))), i) for i, m in enumerate(self.signs) if id(m) not in taken and ok(m)]
+        near = [c for c in near if c[0] < 6.0]
+        return self.signs[min(near)[1]] if near else None
 
     def _ahead(self, pose: OdoPose, m: SignMemory) -> float:
         return float(pose.to_car(m.pos)[0, 1])

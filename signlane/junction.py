@@ -214,6 +214,7 @@ class ScanJunctionParams:
     resume_m: float = 1.0  # the edge back (or the road's end) this soon after: the opening is closed
     end_seen_m: float = 1.5  # a side road is a dead end only where ground is seen this far past its end
     bend_look_m: float = 4.0  # ... and no road goes on within this far ahead or behind its rows there
+    goes_on_m: float = 9.0  # a side road seen this far past its edge (to the view's edge) goes on (a T's arm and one tile end 8 m out)
     straight_m: float = 1.5  # road on both edges this far past a junction: it goes on straight
     in_line_m: float = 0.6  # ... with both edges this close to the lines they ran along before it
     dead_ahead_m: float = 10.0  # the road ending this soon past a junction: straight on is a dead end
@@ -356,39 +357,73 @@ def _opening(scan, rows: np.ndarray, beyond: np.ndarray, view: np.ndarray, ok: n
 
 def _dead_end(scan, group: np.ndarray, beyond: np.ndarray, view: np.ndarray, p: ScanJunctionParams,
               sgn: float) -> bool | None:
-    """Does the side road of an opening visibly end? True when its rows' road stops well inside
-    the view (ground seen beyond its end) and no road goes on from there ahead of or behind the
-    side road's own rows (a bend just past the junction would); False when it is seen to go on;
-    None when too little of it is in view to tell."""
-    end = beyond[group]
-    seen = view[group] - end >= p.end_seen_m  # ground visible past the road's end
-    if scan.road is None:
+    """Does the side road of an opening visibly end? Each of its rows is followed outwards
+    (`_row_reach`): past what stands in the way (a barrier hides the near part of a side road) to
+    where the verge's own ground begins. True when rows see the road end with verge beyond and no
+    road goes on from there ahead of or behind the side road's rows (a bend just past the
+    junction would); False when rows see it go on for `goes_on_m` or to the view's edge; None when
+    too little of it is in view to tell."""
+    if scan.road is None or scan.lab is None:
         return None
-    if seen.sum() < max(3, 0.5 * len(group)):
-        return None
-    e = float(np.median(end[seen]))
-    edge = float(np.median((scan.edge_r if sgn > 0 else scan.edge_l)[group]))
-    x_end = edge + sgn * e
-    near, far = float(scan.y[group[0]]), float(scan.y[group[-1]])
-    # beyond the end, along the side road's rows: the verge's own ground (not road, and not
-    # something standing in the way, such as a barrier beside the road the car is on)
-    road, vis, lab = scan.region(x_end + sgn * 0.5, x_end + sgn * p.end_seen_m, near, far, lab=True)
-    if vis.sum() < 10:
-        return None
-    if road[vis].mean() > 0.2:
-        return False
+    near = float(scan.y[group[0]])
     verge = _verge_colour(scan, near)
     if verge is None:
         return None
-    d = np.abs(lab[vis] - verge)
-    if ((d[:, 0] < 30) & (d[:, 1] < 12) & (d[:, 2] < 12)).mean() < 0.6:
-        return None  # not the verge: what ends the road there is not seen
-    # around the end, ahead of and behind the side road's rows: no road carrying on
+    edge = (scan.edge_r if sgn > 0 else scan.edge_l)[group]
+    ends, goes_on = [], 0
+    for i, e in zip(group, edge):
+        kind, reach = _row_reach(scan, int(i), float(e), sgn, verge, p)
+        if kind == "end":
+            ends.append(reach)
+        elif kind == "on" and reach >= p.goes_on_m:
+            goes_on += 1
+    if goes_on >= max(3, len(ends)):
+        return False
+    if len(ends) < 3:  # (a barrier beside the road may hide all but the far rows of a side road)
+        return None
+    x_end = float(np.median(edge)) + sgn * float(np.max(ends))
+    far = float(scan.y[group[-1]])
+    # around the end, ahead of and behind the side road's rows: no road carrying on. Ahead (a
+    # bend onwards) must be in view; behind (a road bending back towards the car) lies outside
+    # the view's wedge when the end is far out, and is judged only where it is seen
     k = scan.bev.px_per_m[0] * scan.bev.px_per_m[1]
-    for y0, y1 in ((far + 0.6, far + p.bend_look_m), (near - p.bend_look_m, near - 0.6)):
+    for y0, y1, needed in ((far + 0.6, far + p.bend_look_m, True), (near - p.bend_look_m, near - 0.6, False)):
         road, vis = scan.region(x_end - sgn * 2.0, x_end + sgn * 2.0, y0, y1)
         if vis.sum() < 0.5 * 4.0 * (y1 - y0) * k:
-            return None  # not enough of it in view to tell a dead end from a bend
+            if needed:
+                return None  # not enough of it in view to tell a dead end from a bend
+            continue
         if road[vis].mean() > 0.1:
             return False
     return True
+
+
+def _row_reach(scan, i: int, edge_x: float, sgn: float, verge: np.ndarray, p: ScanJunctionParams):
+    """How far row i's road goes past its edge (metres), outwards to side sgn: ("end", m) where
+    the verge's own ground follows it for `end_seen_m`; ("on", m) where road (or something in
+    the way, with road beyond it) runs to the view's edge; ("unknown", 0) otherwise. Things that
+    are neither road nor verge (a barrier, its shadow) are looked past, not taken for the end."""
+    b = scan.bev
+    (u, v), = b.ground_to_bev(np.array([[edge_x, float(scan.y[i])]]))
+    h, w = scan.road.shape
+    v, u = int(np.clip(round(v), 0, h - 1)), int(np.clip(round(u), 0, w - 1))
+    cols = slice(u, w) if sgn > 0 else slice(u, None, -1) if u > 0 else slice(0, 1)
+    road, vis = scan.road[v, cols], scan.visible[v, cols]
+    d = np.abs(scan.lab[v, cols] - verge)
+    verge_px = vis & ~road & (d[:, 0] < 30) & (d[:, 1] < 12) & (d[:, 2] < 12)
+    seen = np.flatnonzero(vis)
+    if len(seen) == 0:
+        return "unknown", 0.0
+    last_seen = int(seen[-1])
+    k = b.px_per_m[0]
+    n = max(2, int(round(p.end_seen_m * k)))
+    # the first stretch of n verge pixels in a row starts where the road has ended
+    run = np.convolve(verge_px.astype(np.int32), np.ones(n, np.int32), "valid")
+    start = np.flatnonzero(run == n)
+    road_at = np.flatnonzero(road & vis)
+    if len(start):
+        before = road_at[road_at < start[0]]
+        return ("end", float(before[-1] + 1) / k) if len(before) else ("unknown", 0.0)
+    if len(road_at) and last_seen - road_at[-1] <= 0.5 * k:
+        return "on", float(road_at[-1]) / k
+    return "unknown", 0.0

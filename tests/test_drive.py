@@ -144,6 +144,19 @@ def test_exit_choice_follows_signs_and_keeps_straight_when_it_can():
     assert b.choose({"right", "straight"}, "left") == "straight"  # no such exit: ignore the sign
 
 
+def test_signs_side_by_side_stay_two_signs_and_a_changed_class_replaces_the_old_one():
+    b = Behaviour()
+    stop, turn = np.array([3.0, 12.0]), np.array([3.0, 14.0])
+    for frame in range(3):  # a stop sign and a turn sign 2 m apart, seen together, either order
+        b.observe_signs([("right", turn + 0.1 * frame), ("stop", stop)] if frame % 2 else [("stop", stop), ("right", turn)])
+    assert sorted(m.label for m in b.signs) == ["right", "stop"]
+    assert np.allclose(next(m for m in b.signs if m.label == "stop").pos, stop)
+    b = Behaviour()
+    b.observe_signs([("left", stop)])
+    b.observe_signs([("no_left", stop + 0.5)])  # the same sign, confirmed from closer as another class
+    assert [m.label for m in b.signs] == ["no_left"]
+
+
 def test_junction_paths_end_on_the_exit_lane():
     p = BehaviourParams()
     right, left = _junction_path("right", 14.0, 0.0, p), _junction_path("left", 14.0, 0.0, p)
@@ -271,6 +284,34 @@ def test_a_dead_end_arm_is_judged_dead_from_the_approach():
         if v.right is not None and v.right.closed:
             verdicts.append(v.right.dead)
     assert True in verdicts and False not in verdicts
+
+
+def test_a_short_arm_of_a_t_reached_along_its_stem_is_judged_dead_and_the_long_one_not():
+    """A T-junction reached along its stem: its east arm ends one cell past the junction, its
+    west arm goes on out of view. The barriers beside the stem hide the near part of both arms;
+    the far rows see the east arm's end with grass beyond it."""
+    w = 15
+    cells = [{"id_inmap": r * w + 7, "tile_id": 0, "rot": 0} for r in range(1, 10)]
+    cells.append({"id_inmap": 11 * w + 7, "tile_id": 4, "rot": 270})  # through road east-west, stem south
+    cells += [{"id_inmap": 11 * w + c, "tile_id": 0, "rot": 90} for c in (9, 5, 4, 3, 2, 1)]
+    track = Track.from_via({"map_name": "stem", "map_size": {"x": w, "y": 16}, "car_pos": {"x": 7, "y": 2},
+                            "cell_datas": cells})
+    assert len(track.dead_ends) == 3
+    route = Route.drive(track, 60)
+    renderer = Renderer(build_scene(track))
+    cam = via_camera(320, 240)
+    method = lanes.get("road-edges", camera=cam)
+    verdicts = {"left": [], "right": []}
+    tee = next(leg for leg in route.legs if leg.tile.junction)
+    for back in np.arange(20.0, 5.0, -1.0):
+        s = renderer.render_on_route(route, tee.s0 - back, cam)
+        method(s.image)
+        v = view_from_scan(method.state.scan)
+        for side, o in (("left", v.left), ("right", v.right)):
+            if o is not None and o.closed:
+                verdicts[side].append(o.dead)
+    assert verdicts["right"].count(True) >= 2 and False not in verdicts["right"]
+    assert True not in verdicts["left"]
 
 
 def _sign_ahead(track: Track, s_m: float, label_id: int) -> dict:

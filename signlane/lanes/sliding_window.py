@@ -198,7 +198,10 @@ def _detect(binary_of, cam: Camera, p: SlidingWindowParams, state: SlidingWindow
     else:
         left, right, kind = _window_search(px, valid, bev, p, state.lane_width_m)
         if tracked:  # keep the side tracking held; the search fills the other
-            left, right, kind = held[0] or left, held[1] or right, "pair"
+            # a 'wide' search's left line is a two-lane road's far edge, not the ego lane's left
+            # boundary: it stays 'wide' (dropped) unless tracking holds the left side itself
+            kind = "wide" if kind == "wide" and held[0] is None else "pair"
+            left, right = held[0] or left, held[1] or right
     lb, rb, conf = _boundaries(left, right, kind, p)
     if not want_debug:
         return lb, rb, conf, None, tracked
