@@ -23,6 +23,8 @@ import multiprocessing as mp
 import time
 from pathlib import Path
 
+from signlane.tables import markdown_row, table
+
 BUNDLED = ["via_town", "loop_demo"]
 SHARED_MAPS = Path(__file__).resolve().parents[2] / "shared" / "via" / "maps"
 TARGET = {"offroad": 0, "stops": 1.0, "turns": 0.95, "cte_mean": 0.10}
@@ -66,11 +68,15 @@ def _ratio(done: int, need: int) -> str:
     return f"{done}/{need}"
 
 
+HEADERS = ["track", "mode", "laps", "off-road", "cte mean / max", "stops", "turns", "sim s", "fps",
+           "latency ms median / p99"]
+
+
 def _row(r: dict) -> str:
-    return (f"| {r['track']} | {r['run']} | {r['laps']} | {r['offroad_events']} | {r['cte_mean']:.3f} / "
-            f"{r['cte_max']:.3f} | {_ratio(r['stops']['complied'], r['stops']['required'])} | "
-            f"{_ratio(r['turns']['complied'], r['turns']['required'])} | {r['time_s']:.0f} | {r['fps']:.1f} | "
-            f"{r['latency_ms']['median']:.1f} / {r['latency_ms']['p99']:.1f} |")
+    return markdown_row([r["track"], r["run"], r["laps"], r["offroad_events"], f"{r['cte_mean']:.3f} / {r['cte_max']:.3f}",
+                         _ratio(r["stops"]["complied"], r["stops"]["required"]),
+                         _ratio(r["turns"]["complied"], r["turns"]["required"]), f"{r['time_s']:.0f}", f"{r['fps']:.1f}",
+                         f"{r['latency_ms']['median']:.1f} / {r['latency_ms']['p99']:.1f}"])
 
 
 def totals(rows: list[dict]) -> dict:
@@ -109,8 +115,7 @@ def main() -> None:
         names = a.tracks or maps + [f"seed{s}" for s in range(a.first_seed, a.first_seed + a.seeds)]
         jobs = [(n, m, str(a.out) if a.out else None, a.random_looks, style) for m in a.modes for n in names]
         print(f"\n### style {style}\n")
-        print("| track | mode | laps | off-road | cte mean / max | stops | turns | sim s | fps | latency ms median / p99 |")
-        print("|---|---|---|---|---|---|---|---|---|---|")
+        print(table(HEADERS, [], markdown=True))
         rows = []
         with mp.get_context("spawn").Pool(a.jobs, maxtasksperchild=1) as pool:
             for r in pool.imap(_run, jobs):

@@ -34,6 +34,7 @@ from signlane.config import Config
 from signlane.sim.protocol import encode_jpeg, encode_telemetry
 from signlane.types import Command, LaneEstimate, Perception
 from signlane.world.sampling import DriveSampler, SamplerConfig
+from signlane.tables import table
 
 BASELINE = "baseline (decode only)"
 
@@ -165,14 +166,12 @@ def main() -> None:
         default = Config().lanes.method  # and the default driver as `signlane drive` runs it: signs on
         rows.append(measure(f"{default} + signs", default, True, messages, args.repeats, base_url))
     print(f"640x480 frames, {kb:.0f} KB per message, {args.frames} frames x {args.repeats} repeats (medians)")
-    print(f"{'server':<24} {'median ms':>9} {'p99 ms':>7} {'base ms':>7} {'x base':>6} {'lockstep fps':>12} "
-          f"{'flood ans/s':>11} {'driven %':>8}")
+    print(table(["server", "median ms", "p99 ms", "base ms", "x base", "lockstep fps", "flood ans/s", "driven %"],
+                [[r["name"], f"{r['median']:.1f}", f"{r['p99']:.1f}", f"{r['base']:.1f}", f"{r['ratio']:.2f}",
+                  f"{r['fps']:.1f}", f"{r['flood']:.0f}", f"{r['driven']:.0f}"] for r in rows if "error" not in r]))
     for r in rows:
         if "error" in r:
-            print(f"{r['name']:<24} unavailable: {r['error'][:90]}")
-            continue
-        print(f"{r['name']:<24} {r['median']:9.1f} {r['p99']:7.1f} {r['base']:7.1f} {r['ratio']:6.2f} "
-              f"{r['fps']:12.1f} {r['flood']:11.0f} {r['driven']:8.0f}")
+            print(f"{r['name']}: unavailable: {r['error'][:90]}")
     print("base ms: the baseline server timed in the same repeats; x base: median of per-repeat ratios. "
           "Shared 2-core machine: absolute times are upper bounds.")
 

@@ -17,6 +17,7 @@ import cv2
 
 from signlane import lanes
 from signlane.world.sampling import FrameSampler, SamplerConfig
+from signlane.tables import table
 
 
 def median_ms(fn, frames, repeats: int) -> float:
@@ -52,9 +53,8 @@ def main() -> None:
                 m = lanes.get(name, camera=samples[0].truth.nominal_camera, variant=variant)
                 t = median_ms(lambda f: (m.reset(), m(f)), frames, args.repeats)
                 rows.append((f"{w}x{h}", f"{name}:{variant}", t, t / base))
-    print(f"{'size':>8}  {'method':<28} {'ms/frame':>9} {'x canny':>8}")
-    for size, name, ms, ratio in rows:
-        print(f"{size:>8}  {name:<28} {ms:9.2f} {ratio:8.1f}")
+    print(table(["size", "method", "ms/frame", "x canny"],
+                [[size, name, f"{ms:.2f}", f"{ratio:.1f}"] for size, name, ms, ratio in rows]))
 
 
 def _segnet_rows(size: str, samples, base: float, repeats: int) -> list[tuple]:

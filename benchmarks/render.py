@@ -22,6 +22,7 @@ from signlane.world.render import Renderer
 from signlane.world.route import Route
 from signlane.world.scene import build_scene
 from signlane.world.track import Track
+from signlane.tables import table
 
 
 def time_per_frame(fn, frames: int, repeats: int) -> float:
@@ -59,9 +60,8 @@ def main() -> None:
             t = time_per_frame(lambda i: renderer.render_on_route(route, i * step, cam, effects=effects, rng=rng),
                                args.frames, args.repeats)
             rows.append((f"{w}x{h}", preset, t * 1e3, 1.0 / t, t / base))
-    print(f"{'size':>8} {'effects':>8} {'ms/frame':>9} {'frames/s':>9} {'x warp':>7}")
-    for size, preset, ms, fps, ratio in rows:
-        print(f"{size:>8} {preset:>8} {ms:9.2f} {fps:9.0f} {ratio:7.1f}")
+    print(table(["size", "effects", "ms/frame", "frames/s", "x warp"],
+                [[size, preset, f"{ms:.2f}", f"{fps:.0f}", f"{ratio:.1f}"] for size, preset, ms, fps, ratio in rows]))
     print("targets: >= 300 frames/s at 320x240 and >= 80 at 640x480 (clean, one core)")
 
 

@@ -24,6 +24,7 @@ import cv2
 from signlane.signs.classifier import DEFAULT_MODEL, SignClassifier, crop
 from signlane.signs.proposals import propose
 from signlane.world.sampling import FrameSampler, SamplerConfig
+from signlane.tables import pairs, table
 
 CARD = DEFAULT_MODEL.with_suffix(".json")
 STEPS = {"generate": "data", "train": "training", "export": "export"}  # step -> card section with its command
@@ -97,11 +98,11 @@ def latency_rows(model: Path, repeats: int) -> list[tuple[str, float]]:
 
 
 def print_recipe(source: str, times: dict[str, float], scores: dict) -> None:
-    for k, v in times.items():
-        print(f"{'recipe (' + source + '): ' + k:<40} {v:8.1f} s")
-    print(f"{'recipe (' + source + '): total':<40} {sum(times.values()) / 60:8.1f} min (target <= 10)")
-    print(f"{'  its model on the test set':<40} accuracy {scores['test_accuracy']:.4f}, min recall "
-          f"{scores['test_min_recall']:.4f}, non-signs accepted {scores['test_non_sign_accepted']:.4f}")
+    print(f"\nrecipe ({source})")
+    print(pairs([(k, f"{v:.1f} s") for k, v in times.items()]
+                + [("total", f"{sum(times.values()) / 60:.1f} min (target <= 10)"),
+                   ("its model on the test set", f"accuracy {scores['test_accuracy']:.4f}, min recall "
+                    f"{scores['test_min_recall']:.4f}, non-signs accepted {scores['test_non_sign_accepted']:.4f}")]))
 
 
 def main() -> None:
@@ -112,9 +113,7 @@ def main() -> None:
     args = ap.parse_args()
     rows = latency_rows(args.model, args.repeats)
     base = rows[0][1]
-    print(f"{'what (1 thread)':<40} {'ms':>8} {'x proposals/frame':>18}")
-    for name, ms in rows:
-        print(f"{name:<40} {ms:8.3f} {ms / base:18.2f}")
+    print(table(["what (1 thread)", "ms", "x proposals/frame"], [[name, f"{ms:.3f}", f"{ms / base:.2f}"] for name, ms in rows]))
     card = json.loads(CARD.read_text())
     if args.recipe:
         times, s = recipe(card)

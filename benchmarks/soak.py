@@ -28,6 +28,7 @@ from websockets.sync.client import connect
 
 from signlane.sim.protocol import encode_jpeg, encode_telemetry
 from signlane.world.sampling import DriveSampler, SamplerConfig
+from signlane.tables import pairs
 
 
 def rss_mb(pid: int) -> float:
@@ -124,9 +125,7 @@ def main() -> int:
     args = p.parse_args()
     w, h = (int(v) for v in args.size.split("x"))
     r = soak(args.seconds, args.fps, w, h, min(args.warmup, args.seconds / 3))
-    width = max(len(k) for k in r)
-    for k, v in r.items():
-        print(f"{k.ljust(width)}  {v}")
+    print(pairs(r.items()))
     ok = r["answered"] == r["sent"] and r["growth_mb"] <= args.max_growth_mb
     print("OK" if ok else "FAILED: " + ("unanswered frames" if r["answered"] != r["sent"] else
                                         f"memory grew {r['growth_mb']} MB > {args.max_growth_mb} MB"))

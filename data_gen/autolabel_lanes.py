@@ -23,7 +23,8 @@ from tqdm import tqdm
 
 from signlane_data.common import DatasetError, atomic_imwrite, atomic_write_text, write_manifest
 from signlane_data.lanes import JPEG_QUALITY, teacher_steering
-from signlane_data.preview import contact_sheet, lane_overlay
+from signlane.draw import contact_sheet
+from signlane_data.preview import lane_overlay
 from signlane import lanes
 from signlane.config import CameraConfig
 from signlane.media import MediaError, expand, iter_frames
@@ -85,7 +86,7 @@ def autolabel_lanes(paths: list[str], out: str | Path, method: str = "sliding-wi
     atomic_write_text(out / "labels.jsonl", "".join(json.dumps(r) + "\n" for r in records))
     for name, tiles in (("sheet.png", kept_tiles), ("rejected.png", rejected_tiles)):
         if tiles:
-            atomic_imwrite(out / name, contact_sheet(tiles, [t for t in _ids(records, name, len(tiles))], 6, (240, 180)))
+            atomic_imwrite(out / name, contact_sheet(tiles, 6, (240, 180), list(_ids(records, name, len(tiles))), gap=0))
     counts = {"seen": seen, "kept": len(records)}
     config = {"method": method, "min_confidence": min_confidence, "every": every, "camera": camera.__dict__,
               "inputs": [str(p) for p in paths]}

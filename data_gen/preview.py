@@ -9,6 +9,7 @@ import cv2
 import numpy as np
 
 from signlane_data.common import atomic_imwrite
+from signlane.draw import contact_sheet
 from signlane.world.art import SIGN_CLASSES
 
 BG = (40, 40, 40)  # BGR sheet background
@@ -22,41 +23,6 @@ def _put_label(img: np.ndarray, text: str, org: tuple[int, int], scale: float = 
     # black outline under white text stays readable on any tile
     cv2.putText(img, text, org, cv2.FONT_HERSHEY_SIMPLEX, scale, (0, 0, 0), 3, cv2.LINE_AA)
     cv2.putText(img, text, org, cv2.FONT_HERSHEY_SIMPLEX, scale, (255, 255, 255), 1, cv2.LINE_AA)
-
-
-def _fit(img: np.ndarray, tile: tuple[int, int]) -> np.ndarray:
-    """`img` (uint8 (H, W) or (H, W, 3) BGR) scaled to fit a (w, h) tile, letterboxed on BG."""
-    tw, th = tile
-    if img.ndim == 2:
-        img = cv2.cvtColor(img, cv2.COLOR_GRAY2BGR)
-    h, w = img.shape[:2]
-    k = min(tw / w, th / h)
-    nw, nh = max(1, round(w * k)), max(1, round(h * k))
-    # small crops are enlarged with nearest so a person sees the real pixels
-    interp = cv2.INTER_AREA if k < 1 else cv2.INTER_NEAREST
-    out = np.full((th, tw, 3), BG, np.uint8)
-    y0, x0 = (th - nh) // 2, (tw - nw) // 2
-    out[y0:y0 + nh, x0:x0 + nw] = cv2.resize(img, (nw, nh), interpolation=interp)
-    return out
-
-
-def contact_sheet(images: Sequence[np.ndarray], labels: Sequence[str] | None = None, cols: int = 8,
-                  tile: tuple[int, int] = (160, 120)) -> np.ndarray:
-    """Tile `images` (uint8 (H, W) grey or (H, W, 3) BGR, any sizes) row by row into one uint8
-    (rows*h, cols*w, 3) BGR sheet; `tile` is (w, h); `labels` are written at each tile's bottom."""
-    n = max(1, len(images))
-    cols = max(1, min(cols, n))
-    rows = (n + cols - 1) // cols
-    tw, th = tile
-    sheet = np.full((rows * th, cols * tw, 3), BG, np.uint8)
-    for k, img in enumerate(images):
-        r, c = divmod(k, cols)
-        t = _fit(img, tile)
-        if labels is not None and k < len(labels) and labels[k]:
-            _put_label(t, str(labels[k]), (3, th - 5))
-        sheet[r * th:(r + 1) * th, c * tw:(c + 1) * tw] = t
-    cv2.rectangle(sheet, (0, 0), (sheet.shape[1] - 1, sheet.shape[0] - 1), BG, 1)
-    return sheet
 
 
 def lane_overlay(image: np.ndarray, mask: np.ndarray, lane: dict | None = None) -> np.ndarray:
@@ -98,7 +64,7 @@ def write_lane_preview(out_dir: str | Path, count: int = 32, cols: int = 8,
         tiles.append(lane_overlay(img, mask, row.get("lane")))
         names.append(f"{row['id']} steer {row.get('steering', 0.0):+.2f}")
     path = out_dir / "preview.png"
-    atomic_imwrite(path, contact_sheet(tiles, names, cols, tile))
+    atomic_imwrite(path, contact_sheet(tiles, cols, tile, names, gap=0))
     return path
 
 
@@ -123,7 +89,7 @@ def write_sign_preview(out_dir: str | Path, per_class: int = 16, classes: Sequen
         crops = [cv2.imread(str(p), cv2.IMREAD_COLOR) for p in _spread(files, per_class)]
         row = np.full((tile[1], width, 3), BG, np.uint8)
         if crops:
-            sheet = contact_sheet(crops, None, per_class, tile)
+            sheet = contact_sheet(crops, per_class, tile, gap=0)
             row[:, :sheet.shape[1]] = sheet
         parts += [header, row]
     path = out_dir / "preview.png"

@@ -23,6 +23,8 @@ import numpy as np
 from signlane_data import sign_crops as sc
 from signlane_data.common import (PARTIAL, atomic_imwrite, atomic_write_json, file_intact, partial_dir, prepare_output,
                                   run_indexed, sample_id, write_manifest)
+from signlane.fileio import atomic_write_text
+from signlane.splits import write_split_files
 from signlane.world.art import SIGN_CLASSES
 from signlane.world.render import Sample
 from signlane.world.sampling import FrameSampler, SamplerConfig
@@ -178,4 +180,8 @@ def _generate(out: Path, n: int, seed: int, crop: int, workers: int, unknown_fra
     counts = {c: len(list((out / c).glob("*.png"))) for c in SIGN_CLASSES}
     sources = {"frames": {c: from_frames[c] for c in SIGN_CLASSES}, "sprites": dict(Counter(plan))}
     log.info("%s: wrote %d sign crops %s", out, sum(counts.values()), counts)
-    return write_manifest(out, "signs", seed, counts, config, sources=sources)
+    # the conventions other tools read: class index order, and the split `signlane train` uses
+    atomic_write_text(out / "classes.txt", "".join(c + "\n" for c in SIGN_CLASSES))
+    split = write_split_files(out, (f"{c}/{f.name}" for c in SIGN_CLASSES for f in (out / c).glob("*.png")))
+    return write_manifest(out, "signs", seed, counts, config, sources=sources, split=split,
+                          class_order=list(SIGN_CLASSES))

@@ -27,7 +27,7 @@ class CameraConfig:
     # where the camera stands ahead of the car's rear axle (what the car steers about): what the
     # camera measures is this much further from the axle. VIA: 0.1 m ahead of the car's origin,
     # midway along its 1.957 m wheelbase
-    forward_m: float = round(VIA_CAMERA_AHEAD_OF_AXLE_M, 2)  # to the centimetre
+    forward_m: float = round(VIA_CAMERA_AHEAD_OF_AXLE_M, 2)  # metres from the rear axle forward to the camera
 
     def camera(self, width: int = 320, height: int = 240) -> Camera:
         return Camera(width, height, self.hfov_deg, self.height_m, self.pitch_deg, self.roll_deg)
@@ -95,6 +95,21 @@ class Config:
     def to_dict(self) -> dict:
         return asdict(self)
 
+    def to_toml(self) -> str:
+        """The config as a TOML file `load` reads back to the same config: one table per
+        section, each setting with the comment the class gives it where it has one."""
+        notes = _field_notes()
+        out = []
+        for section in fields(self):
+            out.append(f"[{section.name}]")
+            for f in fields(getattr(self, section.name)):
+                value = getattr(getattr(self, section.name), f.name)
+                line = f"{f.name} = {_toml_value(value)}"
+                note = notes.get((section.name, f.name))
+                out.append(f"{line}  # {note}" if note else line)
+            out.append("")
+        return "\n".join(out)
+
     @classmethod
     def load(cls, path: str | Path | None = None, overrides: list[str] | None = None) -> "Config":
         """Defaults, then the TOML file's tables, then `section.key=value` overrides."""
@@ -127,6 +142,37 @@ class Config:
         for small, big in ORDERED:
             if _get(self, small) > _get(self, big):
                 raise ValueError(f"{small} = {_get(self, small)!r} is more than {big} = {_get(self, big)!r}")
+
+
+def _toml_value(v: Any) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (int, float)):
+        return repr(v) if math.isfinite(v) else ("inf" if v > 0 else "-inf") if not math.isnan(v) else "nan"
+    if isinstance(v, str):
+        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    raise TypeError(f"no TOML form for {v!r}")
+
+
+def _field_notes() -> dict[tuple[str, str], str]:
+    """(section, key) -> the comment beside the field in this file (the one place they are written)."""
+    import ast
+    import inspect
+    import sys
+    src = inspect.getsource(sys.modules[__name__])
+    lines = src.splitlines()
+    sections = {f.type if isinstance(f.type, str) else f.type.__name__: f.name for f in fields(Config)}
+    notes = {}
+    for node in ast.parse(src).body:
+        if isinstance(node, ast.ClassDef) and node.name in sections:
+            for stmt in node.body:
+                if isinstance(stmt, ast.AnnAssign) and isinstance(stmt.target, ast.Name):
+                    text = lines[stmt.end_lineno - 1]
+                    if "#" in text and text.index("#") > text.index("="):
+                        notes[(sections[node.name], stmt.target.id)] = text.split("#", 1)[1].strip()
+    return notes
 
 
 def _nested(keys: list[str], value: Any) -> dict:

@@ -69,24 +69,54 @@ def draw_hud(image: np.ndarray, lines: Sequence[str], origin=(4, 4)) -> np.ndarr
     return image
 
 
+SHEET_BG = (40, 40, 40)  # BGR background of contact sheets
+
+
 def contact_sheet(images: Sequence[np.ndarray], cols: int = 4, tile: tuple[int, int] | None = None,
-                  captions: Sequence[str] | None = None, gap: int = 2) -> np.ndarray:
-    """Grid of images (resized to `tile` (w, h), default the first image's size), BGR uint8."""
+                  captions: Sequence[str] | None = None, gap: int = 2, scale: float = 0.35,
+                  band: bool = False) -> np.ndarray:
+    """The one contact sheet: images (uint8 grey or BGR, any sizes) row by row, each fitted into
+    a (w, h) tile (default the first image's size) without distortion (letterboxed; small crops
+    enlarged with nearest, so the real pixels show). Captions (one line per '\\n') go on each
+    tile's bottom in outlined text, or with band=True on a strip below it (small crops, where text
+    over the image would hide it). BGR uint8."""
     if not images:
         raise ValueError("contact_sheet needs at least one image")
     tw, th = tile or (images[0].shape[1], images[0].shape[0])
+    cols = max(1, min(cols, len(images)))
     rows = (len(images) + cols - 1) // cols
-    sheet = np.full((rows * (th + gap) + gap, cols * (tw + gap) + gap, 3), 30, np.uint8)
+    texts = [str(captions[i]).split("\n") if captions is not None and i < len(captions) and captions[i] else []
+             for i in range(len(images))]
+    lh = int(22 * scale / 0.5) + 2
+    extra = (max(len(t) for t in texts) * lh + 4) if band and any(texts) else 0
+    ch = th + extra
+    sheet = np.full((rows * (ch + gap) + gap, cols * (tw + gap) + gap, 3), SHEET_BG, np.uint8)
     for i, im in enumerate(images):
-        if im.ndim == 2:
-            im = cv2.cvtColor(im, cv2.COLOR_GRAY2BGR)
         r, c = divmod(i, cols)
-        y, x = gap + r * (th + gap), gap + c * (tw + gap)
-        sheet[y:y + th, x:x + tw] = cv2.resize(im, (tw, th), interpolation=cv2.INTER_AREA)
-        if captions:
-            cv2.putText(sheet, captions[i], (x + 3, y + th - 5), cv2.FONT_HERSHEY_SIMPLEX, 0.35, (255, 255, 255), 1,
-                        cv2.LINE_AA)
+        y, x = gap + r * (ch + gap), gap + c * (tw + gap)
+        sheet[y:y + th, x:x + tw] = _fit(im, (tw, th))
+        lines = texts[i]
+        for k, text in enumerate(lines):
+            if extra:
+                org = (x + 2, y + th + (k + 1) * lh)
+            else:
+                org = (x + 3, y + th - 5 - (len(lines) - 1 - k) * lh)
+                cv2.putText(sheet, text, org, cv2.FONT_HERSHEY_SIMPLEX, scale, (0, 0, 0), 3, cv2.LINE_AA)
+            cv2.putText(sheet, text, org, cv2.FONT_HERSHEY_SIMPLEX, scale, (255, 255, 255), 1, cv2.LINE_AA)
     return sheet
+
+
+def _fit(img: np.ndarray, tile: tuple[int, int]) -> np.ndarray:
+    tw, th = tile
+    if img.ndim == 2:
+        img = cv2.cvtColor(img, cv2.COLOR_GRAY2BGR)
+    h, w = img.shape[:2]
+    k = min(tw / w, th / h)
+    nw, nh = max(1, round(w * k)), max(1, round(h * k))
+    out = np.full((th, tw, 3), SHEET_BG, np.uint8)
+    y0, x0 = (th - nh) // 2, (tw - nw) // 2
+    out[y0:y0 + nh, x0:x0 + nw] = cv2.resize(img, (nw, nh), interpolation=cv2.INTER_AREA if k < 1 else cv2.INTER_NEAREST)
+    return out
 
 
 def write_image(path: str | Path, image: np.ndarray) -> None:
@@ -94,42 +124,3 @@ def write_image(path: str | Path, image: np.ndarray) -> None:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     atomic_imwrite(path if path.suffix else path.with_suffix(".png"), image)
-
-
-def bar_chart(title: str, labels: Sequence[str], series: dict[str, Sequence[float]], ymax: float | None = None,
-              size: tuple[int, int] = (900, 420)) -> np.ndarray:
-    """A grouped bar chart (one group per label, one bar per series) as a BGR image."""
-    W, H = size
-    img = np.full((H, W, 3), 255, np.uint8)
-    left, bottom, top = 60, 70, 40
-    vals = [v for s in series.values() for v in s if np.isfinite(v)]
-    ymax = ymax or (max(vals) * 1.15 if vals else 1.0) or 1.0
-    cv2.putText(img, title, (left, 25), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (0, 0, 0), 1, cv2.LINE_AA)
-    for k in range(5):  # y grid and ticks
-        v = ymax * k / 4
-        y = int(H - bottom - (H - bottom - top) * k / 4)
-        cv2.line(img, (left, y), (W - 10, y), (225, 225, 225), 1)
-        cv2.putText(img, f"{v:.3g}", (5, y + 4), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (80, 80, 80), 1, cv2.LINE_AA)
-    palette = [(200, 120, 30), (40, 160, 240), (60, 180, 60), (180, 60, 180), (60, 60, 220)]
-    gw = (W - left - 10) / max(len(labels), 1)
-    bw = gw * 0.8 / max(len(series), 1)
-    for i, lab in enumerate(labels):
-        x0 = left + i * gw + gw * 0.1
-        for j, (name, vs) in enumerate(series.items()):
-            v = vs[i]
-            if not np.isfinite(v):
-                continue
-            h = (H - bottom - top) * min(v, ymax) / ymax
-            cv2.rectangle(img, (int(x0 + j * bw), int(H - bottom - h)), (int(x0 + (j + 1) * bw) - 2, H - bottom),
-                          palette[j % len(palette)], -1)
-        # labels wider than their group wrap onto a second line at ':' (method:variant)
-        fit = max(4, int(gw * 0.8 / 7))
-        for k, part in enumerate(lab.replace(":", "\n:").split("\n")[:2]):
-            cv2.putText(img, part[:fit], (int(x0), H - bottom + 18 + 14 * k), cv2.FONT_HERSHEY_SIMPLEX, 0.4,
-                        (0, 0, 0), 1, cv2.LINE_AA)
-    for j, name in enumerate(series):  # legend
-        y = H - 25
-        x = left + j * 200
-        cv2.rectangle(img, (x, y - 10), (x + 12, y + 2), palette[j % len(palette)], -1)
-        cv2.putText(img, name, (x + 18, y), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
-    return img

@@ -84,9 +84,8 @@ COLUMNS = [("method", "method", "{}"), ("found_pct", "found %", "{:.1f}"),
 
 
 def format_table(rows: list[dict]) -> str:
-    cells = [[h for _, h, _ in COLUMNS]] + [[f.format(r[k]) for k, _, f in COLUMNS] for r in rows]
-    widths = [max(len(c[i]) for c in cells) for i in range(len(COLUMNS))]
-    return "\n".join("  ".join(c[i].rjust(widths[i]) for i in range(len(COLUMNS))) for c in cells)
+    from signlane.tables import table
+    return table([h for _, h, _ in COLUMNS], [[f.format(r[k]) for k, _, f in COLUMNS] for r in rows])
 
 
 def write_csv(path: str | Path, rows: list[dict]) -> None:
@@ -102,7 +101,8 @@ def write_csv(path: str | Path, rows: list[dict]) -> None:
 
 def plot_lanes(path: str | Path, rows: list[dict]) -> None:
     """Two bar charts stacked: lane found % and offset errors (median, p95) per method."""
-    from signlane.draw import bar_chart, write_image
+    from signlane.draw import write_image
+    from signlane.plots import bar_chart
     labels = [r["method"] for r in rows]
     found = bar_chart("lane found %", labels, {"found %": [r["found_pct"] for r in rows]}, ymax=100.0)
     errs = bar_chart("lateral offset error (fraction of lane width)", labels,
@@ -110,21 +110,24 @@ def plot_lanes(path: str | Path, rows: list[dict]) -> None:
     write_image(path, np.vstack([found, errs]))
 
 
-def eval_signs(data: str | Path, model: str | Path | None = None, min_score: float = 0.5) -> dict:
+def eval_signs(data: str | Path, model: str | Path | None = None, min_score: float = 0.5,
+               out: str | Path | None = None) -> dict:
     """Classifier scores on an ImageFolder crop set (e.g. a fresh `signlane gen signs` seed):
     accuracy, recall per class, and how often a non-sign is accepted as a sign (argmax not
-    'unknown' and score >= min_score, as the runtime would act on it)."""
+    'unknown' and score >= min_score, as the runtime would act on it). With `out`, the set's
+    confusion.png and errors_<class>.png/.txt (signlane/sign_report.py) are written there."""
     import cv2
     from signlane.media import IMAGE_EXT
     from signlane.signs.classifier import DEFAULT_MODEL, SignClassifier
     clf = SignClassifier(model or DEFAULT_MODEL, threads=2, batch=256)
     root = Path(data)
-    crops, labels = [], []
+    crops, labels, files = [], [], []
     for d in sorted(p for p in root.iterdir() if p.is_dir() and p.name in clf.classes):
         for f in sorted(d.iterdir()):
             if f.suffix.lower() in IMAGE_EXT:
                 crops.append(cv2.imread(str(f)))
                 labels.append(clf.classes.index(d.name))
+                files.append(f)
     if not crops:
         raise ValueError(f"{root}: no crops in class folders ({', '.join(clf.classes)})")
     probs = clf.probabilities(crops)
@@ -133,6 +136,9 @@ def eval_signs(data: str | Path, model: str | Path | None = None, min_score: flo
     neg = y == unknown
     accepted = (pred != unknown) & (probs.max(axis=1) >= min_score)
     recall = {c: float((pred[y == k] == k).mean()) for k, c in enumerate(clf.classes) if (y == k).any()}
+    if out is not None:
+        from signlane.sign_report import write_sign_report
+        write_sign_report(out, files, y, pred, probs.max(axis=1), clf.classes, root.name)
     return {"model": str(model or DEFAULT_MODEL), "n": int(len(y)), "accuracy": float((pred == y).mean()),
             "min_recall": min(recall.values()), "recall": recall,
             "non_sign_accepted": float(accepted[neg].mean()) if neg.any() else float("nan")}

@@ -22,6 +22,7 @@ from signlane.draw import draw_boxes, draw_hud, draw_lane, write_image
 from signlane.fileio import atomic_open_text, atomic_write_text
 from signlane.imagecheck import DEFAULT_MAX_PIXELS
 from signlane.media import MediaError, Source, expand, iter_video, read_image, video_info
+from signlane.tables import pairs
 from signlane.video_out import VideoOut
 from signlane.pipeline import Pipeline
 from signlane.types import Command, Frame, Perception
@@ -50,8 +51,7 @@ class Summary:
                 ("inputs failed", str(len(self.failed)))]
         rows += [(f"signs: {k}", str(v)) for k, v in sorted(self.signs.items())]
         rows += [(f"ms {k} (median)", f"{np.median(v):.2f}") for k, v in self.timing.items()]
-        w = max(len(k) for k, _ in rows)
-        return "\n".join(f"{k.ljust(w)}  {v}" for k, v in rows)
+        return pairs(rows)
 
 
 def record(source: str, index: int, p: Perception, cmd: Command) -> dict:

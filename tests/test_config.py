@@ -44,3 +44,25 @@ def test_bad_toml_file(tmp_path):
         Config.load(f)
     with pytest.raises(ValueError, match="cannot read"):
         Config.load(tmp_path / "none.toml")
+
+
+def test_config_print_is_toml_that_loads_back_to_the_same_config(tmp_path, capsys):
+    from signlane.cli import main
+    assert main(["config", "--print", "--set", "camera.pitch_deg=12.5", "--set", "lanes.method=road-edges"]) == 0
+    text = capsys.readouterr().out
+    assert "[camera]" in text and "pitch_deg = 12.5" in text and "# robust | published" in text
+    path = tmp_path / "mine.toml"
+    path.write_text(text)
+    cfg = Config.load(path)
+    assert cfg == Config.load(None, ["camera.pitch_deg=12.5", "lanes.method=road-edges"])
+    assert cfg != Config()
+
+
+def test_one_table_style_right_aligns_numbers_and_rejects_ragged_rows():
+    from signlane.tables import pairs, table
+    text = table(["method", "found %"], [["auto", "99.5"], ["sliding-window", "7.0"]]).splitlines()
+    assert text[0] == "method          found %" and text[2].endswith("   99.5") and text[3].endswith("    7.0")
+    assert table(["a", "b"], [["x", "1"]], markdown=True).splitlines() == ["| a | b |", "|---|---|", "| x | 1 |"]
+    assert pairs([("laps", 1), ("off-road events", 0)]).splitlines() == ["laps             1", "off-road events  0"]
+    with pytest.raises(ValueError, match="2 columns"):
+        table(["a", "b"], [["only one"]])

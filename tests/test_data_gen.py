@@ -14,7 +14,7 @@ from gen_helpers import generate_lanes_killed_at
 from signlane_data.common import (DatasetError, atomic_write_bytes, chunked, prepare_output, run_indexed, sample_id)
 from signlane_data.drive import generate_drive
 from signlane_data.lanes import generate_lanes, teacher_steering
-from signlane_data.preview import contact_sheet
+from signlane.draw import contact_sheet
 from signlane_data.sign_crops import colour_regions, crop_resize, iou, jitter_box
 from signlane_data.signs import class_targets, generate_signs, unknown_quota
 from signlane.world.art import SIGN_CLASSES, draw_sign
@@ -201,6 +201,13 @@ def test_signs_imagefolder(tmp_path: Path) -> None:
     assert sum(manifest["counts"].values()) >= 70
     assert cv2.imread(str(out / "preview.png")) is not None
     assert not (out / ".partial").exists()  # ImageFolder would take it for a class
+    # the conventions: class index order, and train.txt / val.txt = the split training uses
+    assert (out / "classes.txt").read_text().split() == list(SIGN_CLASSES) == manifest["class_order"]
+    from signlane.splits import split_of
+    train, val = ((out / f).read_text().split() for f in ("train.txt", "val.txt"))
+    every = sorted(f"{c}/{p.name}" for c in SIGN_CLASSES for p in (out / c).glob("*.png"))
+    assert sorted(train + val) == every and val and manifest["split"] == {"train": len(train), "val": len(val)}
+    assert all(split_of(k) == "val" for k in val) and all(split_of(k) == "train" for k in train)
 
 
 def test_signs_identical_with_two_workers(tmp_path: Path) -> None:
@@ -247,5 +254,5 @@ def test_drive_frames_and_video(tmp_path: Path) -> None:
 # --------------------------------------------------------------------------- preview
 def test_contact_sheet_layout() -> None:
     imgs = [np.full((30, 40, 3), k * 20, np.uint8) for k in range(10)] + [np.zeros((10, 10), np.uint8)]
-    sheet = contact_sheet(imgs, [str(k) for k in range(11)], cols=4, tile=(80, 60))
+    sheet = contact_sheet(imgs, cols=4, tile=(80, 60), captions=[str(k) for k in range(11)], gap=0)
     assert sheet.shape == (3 * 60, 4 * 80, 3) and sheet.dtype == np.uint8

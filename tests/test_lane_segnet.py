@@ -89,7 +89,8 @@ def test_smoke_training_on_mixed_sets_writes_its_outputs(trained):
         assert (run / name).exists(), name
     assert list((run / "logs").rglob("metrics.csv")) and list((run / "tensorboard").rglob("events.*"))
     # both sets were trained on: every frame the stable split puts on the train side, from each
-    from signlane_train.lane_data import list_frames, split_of
+    from signlane.splits import split_of
+    from signlane_train.lane_data import list_frames
     train = [it for it in list_frames([root / "synthetic", root / "auto"]) if split_of(it.key, 0.1) == "train"]
     assert {it.key.split("/")[0] for it in train} == {"synthetic", "auto"}
     assert json.loads((run / "config.json").read_text())["train_frames"] == len(train)

@@ -153,6 +153,32 @@ def test_shipped_model_meets_a_floor_on_a_fresh_seeded_set(tmp_path):
     assert all(r >= 0.95 for label, r in scores["recall"].items() if label != "unknown")
 
 
+def test_sign_report_traces_every_wrong_crop_to_its_file(tmp_path):
+    from signlane.sign_report import write_sign_report
+    files = []
+    for k in range(12):
+        f = tmp_path / "crops" / f"crop_{k:03d}.png"
+        f.parent.mkdir(exist_ok=True)
+        cv2.imwrite(str(f), np.full((40, 40, 3), 20 * k, np.uint8))
+        files.append(f)
+    stop, left = SIGN_CLASSES.index("stop"), SIGN_CLASSES.index("left")
+    y = np.array([stop] * 6 + [left] * 6)
+    pred = y.copy()
+    pred[[1, 4]] = left  # two stop signs taken for 'left'
+    score = np.linspace(0.5, 0.95, 12)
+    out = tmp_path / "report"
+    (out).mkdir()
+    (out / "errors_left.png").write_bytes(b"stale")  # none wrong now: must not stay behind
+    write_sign_report(out, files, y, pred, score, SIGN_CLASSES, "test")
+    assert cv2.imread(str(out / "confusion.png")) is not None
+    assert not (out / "errors_left.png").exists()
+    rows = (out / "errors_stop.txt").read_text().splitlines()[1:]
+    assert [r.split("\t")[1] for r in rows] == [str(files[1]), str(files[4])]
+    assert [r.split("\t")[2] for r in rows] == ["left", "left"] and rows[1].endswith(f"{score[4]:.4f}")
+    sheet = cv2.imread(str(out / "errors_stop.png"))
+    assert sheet is not None and sheet.shape[1] >= 2 * 96
+
+
 def _frame_with_stop(size: int) -> tuple[np.ndarray, tuple[int, int, int, int]]:
     """A grey 160x120 frame with a stop sign of `size` px at (60, 40), and the sign's box."""
     from signlane.world.art import draw_sign

@@ -370,3 +370,18 @@ def test_via_sign_faces_are_lit_brighter_than_in_a_painted_scene():
     # not saturated: each pixel is the painted one times the gain
     ok = (painted > 20) & (painted < 180)
     assert ok.sum() > 200 and np.median(via[ok] / painted[ok]) == pytest.approx(gain, abs=0.05)
+
+
+def test_topdown_legend_is_a_strip_below_an_unchanged_map():
+    from signlane.world.topdown import SIGN_BGR, draw_topdown
+    track = bundled_map("via_town")
+    scene = build_scene(track)
+    lap = Route.loop(track).lane
+    plain = draw_topdown(scene, path_xy=lap)
+    with_legend = draw_topdown(scene, path_xy=lap, legend="lap from the start")
+    h = plain.shape[0]
+    assert with_legend.shape[0] > h + 15 and with_legend.shape[1] == plain.shape[1]
+    assert np.array_equal(with_legend[:h], plain)  # the minimap part stays VIA's
+    strip = with_legend[h:].reshape(-1, 3)
+    for colour in [(0, 0, 255), (0, 255, 0), SIGN_BGR["stop"], SIGN_BGR["no_left"]]:  # path, start, signs
+        assert (np.abs(strip.astype(int) - colour).sum(axis=1) < 40).sum() > 10

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+import logging
 import random
 import zipfile
 from dataclasses import dataclass
@@ -14,6 +15,12 @@ from lightning.pytorch.callbacks import EarlyStopping, ModelCheckpoint
 from lightning.pytorch.loggers import CSVLogger, TensorBoardLogger
 
 from signlane.fileio import atomic_write_text
+
+# lightning gives its logger a stderr handler of its own and still lets it propagate: with the
+# command line's root handler every line of it came out twice. The root handler prints them.
+if logging.getLogger().hasHandlers():
+    for _h in list(logging.getLogger("lightning").handlers):
+        logging.getLogger("lightning").removeHandler(_h)
 
 
 @dataclass(frozen=True)

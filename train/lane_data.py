@@ -7,7 +7,6 @@ exactly what the car's model will see.
 """
 from __future__ import annotations
 
-import hashlib
 import json
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,6 +18,7 @@ import numpy as np
 import torch
 from torch.utils.data import DataLoader, Dataset
 
+from signlane.splits import split_of
 from signlane.lanes.seg_model import DEFAULT_SPEC, mask_target, preprocess_frames
 from signlane.onnx_model import InputSpec
 from signlane_train.common import seed_worker
@@ -55,12 +55,6 @@ def list_frames(roots: list[Path]) -> list[Item]:
             raise ValueError(f"{root}: an empty training set ({why}); leave it out or fill it")
         items += own
     return items
-
-
-def split_of(key: str, val_fraction: float) -> str:
-    """A stable train/val split by name hash (the same frame always lands on the same side)."""
-    h = int(hashlib.sha1(key.encode()).hexdigest()[:8], 16)
-    return "val" if (h % 10000) / 10000.0 < val_fraction else "train"
 
 
 def train_augment(seed: int | None = None) -> A.Compose:

@@ -6,7 +6,6 @@ so training sees exactly what the car's classifier will see.
 """
 from __future__ import annotations
 
-import hashlib
 from pathlib import Path
 
 import albumentations as A
@@ -18,6 +17,7 @@ from torch.utils.data import DataLoader, Dataset
 
 from signlane.onnx_model import InputSpec
 from signlane.signs.classifier import DEFAULT_SPEC, preprocess_crops
+from signlane.splits import split_of
 from signlane.world.art import SIGN_CLASSES
 from signlane_train.common import seed_worker
 
@@ -40,10 +40,9 @@ def list_crops(roots: list[Path], classes: tuple[str, ...] = SIGN_CLASSES) -> li
     return items
 
 
-def split_of(path: Path, val_fraction: float) -> str:
-    """A stable train/val split by file name hash (the same file always lands on the same side)."""
-    h = int(hashlib.sha1(f"{path.parent.name}/{path.name}".encode()).hexdigest()[:8], 16)
-    return "val" if (h % 10000) / 10000.0 < val_fraction else "train"
+def crop_key(path: Path) -> str:
+    """A crop's split key: `<class>/<file>` (the path train.txt / val.txt list)."""
+    return f"{path.parent.name}/{path.name}"
 
 
 def train_augment(strength: float = 1.0, seed: int | None = None) -> A.Compose:
@@ -95,8 +94,8 @@ class SignDataModule(L.LightningDataModule):
 
     def setup(self, stage: str | None = None) -> None:
         items = list_crops(self.roots)
-        self.train_items = [it for it in items if split_of(it[0], self.val_fraction) == "train"]
-        self.val_items = [it for it in items if split_of(it[0], self.val_fraction) == "val"]
+        self.train_items = [it for it in items if split_of(crop_key(it[0]), self.val_fraction) == "train"]
+        self.val_items = [it for it in items if split_of(crop_key(it[0]), self.val_fraction) == "val"]
         if not self.train_items or not self.val_items:
             raise ValueError(f"need crops on both sides of the split; got {len(self.train_items)} train, "
                              f"{len(self.val_items)} val")

@@ -5,11 +5,10 @@ import logging
 import time
 from pathlib import Path
 
-import cv2
 import numpy as np
 import torch
 
-from signlane.draw import contact_sheet, write_image
+from signlane.sign_report import write_sign_report
 from signlane.world.art import SIGN_CLASSES
 from signlane_train.common import ScaleOut, build_trainer, resume_path, save_run_config
 from signlane_train.run_info import RunInfo
@@ -72,18 +71,18 @@ def evaluate_checkpoint(ckpt: str, items, spec, out: Path | None = None) -> dict
     writes confusion.png and errors_<class>.png to out when given."""
     task = SignTask.load_from_checkpoint(ckpt, map_location="cpu").eval()
     ds = CropDataset(items, spec)
-    preds, labels = [], []
+    probs, labels = [], []
     with torch.no_grad():
         for i in range(0, len(ds), 512):
             batch = [ds[j] for j in range(i, min(len(ds), i + 512))]
             x = torch.stack([b[0] for b in batch])
-            preds.append(task(x).argmax(1).numpy())
+            probs.append(torch.softmax(task(x), 1).numpy())
             labels += [b[1] for b in batch]
-    pred, y = np.concatenate(preds), np.array(labels)
+    prob, y = np.concatenate(probs), np.array(labels)
+    pred = prob.argmax(1)
     report = classification_report(pred, y)
     if out is not None:
-        write_image(out / "confusion.png", confusion_image(report["confusion"]))
-        _write_errors(out, items, pred, y)
+        write_sign_report(out, [it[0] for it in items], y, pred, prob.max(1), SIGN_CLASSES, "validation")
     return report
 
 
@@ -98,33 +97,3 @@ def classification_report(pred: np.ndarray, y: np.ndarray) -> dict:
             "n": int(len(y)), "confusion": conf.tolist()}
 
 
-def confusion_image(conf: list[list[int]], cell: int = 56) -> np.ndarray:
-    """Row-normalised confusion matrix (rows = truth) as a picture with counts."""
-    m = np.array(conf, float)
-    norm = m / np.maximum(m.sum(axis=1, keepdims=True), 1)
-    n = len(SIGN_CLASSES)
-    pad = 90
-    img = np.full((pad + n * cell + 10, pad + n * cell + 10, 3), 255, np.uint8)
-    for i in range(n):
-        for j in range(n):
-            v = norm[i, j]
-            col = (int(255 * (1 - v)), int(255 * (1 - 0.6 * v)), 255) if i != j else (int(255 * (1 - v)), 255, int(255 * (1 - v)))
-            x, yy = pad + j * cell, pad + i * cell
-            cv2.rectangle(img, (x, yy), (x + cell - 2, yy + cell - 2), col, -1)
-            cv2.putText(img, str(int(m[i, j])), (x + 4, yy + cell // 2 + 4), cv2.FONT_HERSHEY_SIMPLEX, 0.38, (0, 0, 0), 1)
-        cv2.putText(img, SIGN_CLASSES[i][:9], (2, pad + i * cell + cell // 2 + 4), cv2.FONT_HERSHEY_SIMPLEX, 0.38, (0, 0, 0), 1)
-        cv2.putText(img, SIGN_CLASSES[i][:7], (pad + i * cell + 2, pad - 8), cv2.FONT_HERSHEY_SIMPLEX, 0.36, (0, 0, 0), 1)
-    cv2.putText(img, "truth (rows) vs predicted (columns)", (4, 20), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1)
-    return img
-
-
-def _write_errors(out: Path, items, pred: np.ndarray, y: np.ndarray, per_class: int = 32) -> None:
-    """errors_<class>.png: crops of that class the model got wrong, captioned with the prediction."""
-    for k, name in enumerate(SIGN_CLASSES):
-        wrong = np.nonzero((y == k) & (pred != k))[0][:per_class]
-        path = out / f"errors_{name}.png"
-        if len(wrong) == 0:
-            path.unlink(missing_ok=True)
-            continue
-        crops = [cv2.imread(str(items[i][0])) for i in wrong]
-        write_image(path, contact_sheet(crops, cols=8, tile=(64, 64), captions=[SIGN_CLASSES[pred[i]] for i in wrong]))

@@ -105,6 +105,8 @@ def add_eval(sub) -> None:
     signs.add_argument("data", type=Path, help="crop folder (<class>/<id>.png)")
     signs.add_argument("--model", type=Path, help="ONNX model (default: the shipped one)")
     signs.add_argument("--min-score", type=float, default=0.5, help="score a sign needs to count (default 0.5)")
+    signs.add_argument("--out", type=Path, help="write confusion.png and errors_<class>.png/.txt (each wrong crop "
+                                                 "captioned with its file, what it was taken for and the score) here")
     p.set_defaults(func=_run_eval)
 
 
@@ -114,7 +116,7 @@ def _run_eval(args) -> int:
         try:
             if args.kind == "signs":
                 from signlane.evaluate import eval_signs
-                result = eval_signs(args.data, args.model, args.min_score)
+                result = eval_signs(args.data, args.model, args.min_score, args.out)
             else:
                 from signlane.eval_masks import eval_masks
                 result = eval_masks(args.data, args.model, args.tol)

@@ -16,7 +16,10 @@ def add_gen(sub) -> None:
                                    "completed with --resume.")
     kinds = p.add_subparsers(dest="kind", required=True, metavar="{lanes,signs,drive}")
     common = argparse.ArgumentParser(add_help=False)
-    common.add_argument("--n", type=positive, required=True, help="number of frames / crops")
+    common.add_argument("--n", type=positive, required=True,
+                        help="how many: lanes and drive = frames; signs = crops (about n, in ImageFolder class "
+                             "folders, with classes.txt and the train.txt / val.txt split; n/4 rendered frames "
+                             "supply the real ones)")
     common.add_argument("--out", type=Path, required=True, help="output folder")
     common.add_argument("--seed", type=int, default=0, help="dataset seed (default 0)")
     common.add_argument("--resume", action="store_true", help="complete an interrupted run in --out")
@@ -164,7 +167,7 @@ def _run_map(args) -> int:
                       "signs": [s.kind for s in track.signs], "dead_ends": len(track.dead_ends),
                       "lap_m": lap_m, "warnings": track.warnings}))
     if args.png:
-        write_image(args.png, draw_topdown(build_scene(track), path_xy=path))
+        write_image(args.png, draw_topdown(build_scene(track), path_xy=path, legend="lap from the start"))
     if args.save and data is not None:
         atomic_write_json(args.save, data)
     return 0

@@ -171,14 +171,12 @@ def eval_many(n: int = 500, seed: int = 1000, hard: bool = False, variants: Sequ
 
 
 def format_table(rows: Sequence[dict]) -> str:
-    """A fixed-width text table of eval_proposals() results."""
-    head = f"{'variant':<10} {'set':<13} {'frames':>6} {'signs':>5} {'recall':>7} {'false/fr':>8} " \
-           f"{'props/fr':>8} {'ms':>6}"
-    lines = [head, "-" * len(head)]
-    for r in rows:
-        lines.append(f"{r['variant']:<10} {r['set']:<13} {r['frames']:>6} {r['signs']:>5} {100 * r['recall']:>6.1f}% "
-                     f"{r['false_per_frame']:>8.2f} {r['proposals_per_frame']:>8.2f} {r['ms_median']:>6.2f}")
-    return "\n".join(lines)
+    """The table of eval_proposals() results."""
+    from signlane.tables import table
+    return table(["variant", "set", "frames", "signs", "recall", "false/fr", "props/fr", "ms"],
+                 [[r["variant"], r["set"], r["frames"], r["signs"], f"{100 * r['recall']:.1f}%",
+                   f"{r['false_per_frame']:.2f}", f"{r['proposals_per_frame']:.2f}", f"{r['ms_median']:.2f}"]
+                  for r in rows])
 
 
 def write_csv(path: str | Path, rows: Sequence[dict]) -> None:

@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from signlane.tables import pairs
+
 INTERVENTION_S = 6.0  # PilotNet: each intervention costs 6 seconds of autonomy
 
 
@@ -57,5 +59,4 @@ def format_report(rep: dict) -> str:
             ("distance m / time s", f"{rep['distance_m']:.0f} / {rep['time_s']:.1f}"),
             ("mean speed m/s", f"{rep['mean_speed']:.2f}"), ("frames/s (wall)", f"{rep['fps']:.1f}"),
             ("server latency median / p99 ms", f"{rep['latency_ms']['median']:.1f} / {rep['latency_ms']['p99']:.1f}")]
-    w = max(len(k) for k, _ in rows)
-    return "\n".join(f"{k:<{w}}  {v}" for k, v in rows)
+    return pairs(rows)

@@ -3,18 +3,21 @@ server this process starts, or an external server), an optional annotated video,
 files (report JSON, top-down path PNG)."""
 from __future__ import annotations
 
+import contextlib
 import logging
 import time
 from pathlib import Path
 
 import numpy as np
 from tqdm import tqdm
+from tqdm.contrib.logging import logging_redirect_tqdm
 
 from signlane.config import Config
 from signlane.draw import draw_boxes, draw_hud, draw_lane, write_image
 from signlane.fileio import atomic_write_json
 from signlane.sim.simulator import SimConfig, Simulator, run_client, run_inprocess
 from signlane.video_out import VideoOut
+from signlane.world.route import Route
 from signlane.world.topdown import draw_topdown
 from signlane.world.track import Track
 
@@ -63,13 +66,25 @@ class _Tapped:
         return getattr(self.driver, name)
 
 
+def _loop_length(track: Track) -> float | None:
+    """Metres of the start's loop (the route the driver's turns may still change), or None
+    where the road from the start ends before it closes."""
+    try:
+        return float(Route.loop(track).length)
+    except RuntimeError:
+        return None
+
+
 def run_session(track: Track, sim_config: SimConfig, out: Path | None, config: Config | None = None,
                 url: str | None = None, lockstep: bool = True, with_driver: bool = False,
                 video: bool = False, show_progress: bool = True) -> dict:
     """Drive one run; returns the report (also written to out/report.json with out/path.png)."""
     sim = Simulator(track, sim_config)
     config = config or Config()
-    bar = tqdm(total=sim_config.laps, desc="laps", unit="lap", disable=not show_progress)
+    # the bar counts metres along the start's loop (a whole lap of laps would sit at 0 for minutes)
+    lap_m = _loop_length(track)
+    total = round(sim_config.laps * lap_m) if lap_m else sim_config.laps
+    bar = tqdm(total=total, desc=f"lap 1/{sim_config.laps}", unit="m" if lap_m else "lap", disable=not show_progress)
     writer = None
     if video and out is not None:
         out.mkdir(parents=True, exist_ok=True)
@@ -79,7 +94,13 @@ def run_session(track: Track, sim_config: SimConfig, out: Path | None, config: C
     seen = SeenByDriver(config, lockstep) if with_driver and writer is not None else None
 
     def progress(s, cmd, perception):
-        bar.n = s.course.laps
+        laps = s.course.laps
+        if lap_m:  # the odometer, held short of the end until the lap is really counted
+            bar.n = total if laps >= sim_config.laps else min(round(s.vehicle.odometer_m), total - 1)
+        else:
+            bar.n = laps
+        if s.frame % 20 == 0:
+            bar.set_description_str(f"lap {min(laps + 1, sim_config.laps)}/{sim_config.laps}", refresh=False)
         bar.set_postfix_str(f"t={s.t:.0f}s off={s.score.offroad_events}", refresh=s.frame % 20 == 0)
         if writer is not None:
             if seen is not None and seen.latest[0] is not None:
@@ -87,24 +108,26 @@ def run_session(track: Track, sim_config: SimConfig, out: Path | None, config: C
             writer.write(annotate_drive(s.last_image, perception, cmd, s.vehicle.speed, s.t))
 
     t0 = time.perf_counter()
-    try:
-        if url is None and not with_driver:
-            from signlane.sim.driver import Driver
-            with Driver(config, sync_signs=lockstep) as driver:
-                rep = run_inprocess(sim, driver, progress)
-                rep["decisions"] = driver.behaviour.decisions  # what the driver saw at each junction
-        elif with_driver:
-            from signlane.sim.server import DriveServer, ServerOptions
-            with DriveServer(config, ServerOptions(port=0, sync_signs=lockstep), driver_factory=seen) as srv:
-                if seen is not None:
-                    seen.latest = (None, None)  # the server's start-up probe drove a blank frame
-                rep = run_client(sim, srv.url, lockstep, progress)
-        else:
-            rep = run_client(sim, url, lockstep, progress)
-    finally:
-        bar.close()
-        if writer is not None:
-            writer.close()
+    # log lines (the drive server's) go above the bar instead of through it
+    with logging_redirect_tqdm() if show_progress else contextlib.nullcontext():
+        try:
+            if url is None and not with_driver:
+                from signlane.sim.driver import Driver
+                with Driver(config, sync_signs=lockstep) as driver:
+                    rep = run_inprocess(sim, driver, progress)
+                    rep["decisions"] = driver.behaviour.decisions  # what the driver saw at each junction
+            elif with_driver:
+                from signlane.sim.server import DriveServer, ServerOptions
+                with DriveServer(config, ServerOptions(port=0, sync_signs=lockstep), driver_factory=seen) as srv:
+                    if seen is not None:
+                        seen.latest = (None, None)  # the server's start-up probe drove a blank frame
+                    rep = run_client(sim, srv.url, lockstep, progress)
+            else:
+                rep = run_client(sim, url, lockstep, progress)
+        finally:
+            bar.close()
+            if writer is not None:
+                writer.close()
     rep["fps"] = round(sim.frame / max(time.perf_counter() - t0, 1e-9), 2)
     rep["map"] = track.name
     rep["mode"] = "lockstep" if lockstep else \
@@ -112,5 +135,5 @@ def run_session(track: Track, sim_config: SimConfig, out: Path | None, config: C
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
         atomic_write_json(out / "report.json", rep)
-        write_image(out / "path.png", draw_topdown(sim.renderer.scene, path_xy=np.array(sim.path)))
+        write_image(out / "path.png", draw_topdown(sim.renderer.scene, path_xy=np.array(sim.path), legend="driven path"))
     return rep

@@ -10,7 +10,7 @@ from signlane.world.art import SIGN_NAMES
 from signlane.world.scene import ASPHALT, KERB, SHADOW, Scene
 
 SIGN_BGR = {"stop": (40, 40, 220), "left": (200, 120, 0), "right": (200, 120, 0), "straight": (200, 120, 0),
-            "no_left": (60, 60, 200), "no_right": (60, 60, 200)}
+            "no_left": (200, 60, 200), "no_right": (200, 60, 200)}
 # VIA's minimap colours (BGR), read off its renders (../shared/via/minimaps)
 MINIMAP_ROAD = (73, 71, 70)
 MINIMAP_GROUND = {"grass": (41, 83, 58), "ground": (24, 37, 51), "none": (110, 108, 106)}
@@ -44,9 +44,11 @@ def road_mask(track, scene: Scene, px_per_cell: float = PX_PER_CELL) -> np.ndarr
 
 def draw_topdown(scene: Scene, px_per_cell: float = PX_PER_CELL, path_xy: np.ndarray | None = None,
                  marks: list[tuple[float, float, tuple[int, int, int]]] | None = None,
-                 signs: bool = True) -> np.ndarray:
+                 signs: bool = True, legend: str | None = None) -> np.ndarray:
     """uint8 BGR picture of the scene from above (see the module docstring); path_xy (N,2) world
-    metres is drawn in red, marks as crosses."""
+    metres is drawn in red, marks as crosses. With `legend` (what the red path is, e.g. "driven
+    path"), a strip below the map says what each colour is, with a 10 m scale bar; the map
+    itself stays VIA's minimap, pixel for pixel."""
     track = scene.track
     x0, y1, k, w, h = minimap_frame(track, px_per_cell)
     img = np.full((h, w, 3), MINIMAP_GROUND.get(track.background, MINIMAP_GROUND["none"]), np.uint8)
@@ -83,4 +85,56 @@ def draw_topdown(scene: Scene, px_per_cell: float = PX_PER_CELL, path_xy: np.nda
         cv2.circle(img, tuple(int(v) for v in to_px(path_xy[:1])[0]), 4, (0, 255, 0), -1)
     for x, y, col in marks or []:
         cv2.drawMarker(img, tuple(int(v) for v in to_px([[x, y]])[0]), col, cv2.MARKER_CROSS, 10, 2)
-    return img
+    if legend is None:
+        return img
+    kinds = {o.kind for o in scene.objects if o.kind in SIGN_NAMES} if signs else set()
+    return np.vstack([img, _legend_strip(img.shape[1], k, legend if path_xy is not None else None, kinds,
+                                         MINIMAP_GROUND.get(track.background, MINIMAP_GROUND["none"]))])
+
+
+def _legend_strip(width: int, px_per_m: float, path_label: str | None, sign_kinds: set[str], ground) -> np.ndarray:
+    """Rows of swatches and labels under a map: road, kerb, the path, its start, each sign
+    colour present, and a 10 m scale bar; wrapped to the map's width."""
+    items = [("road", "box", MINIMAP_ROAD), ("kerb", "box", (245, 245, 245))]
+    if path_label:
+        items += [(path_label, "line", (0, 0, 255)), ("start", "dot", (0, 255, 0))]
+    groups = [("stop sign", {"stop"}), ("turn / straight sign", {"left", "right", "straight"}),
+              ("no-turn sign", {"no_left", "no_right"})]
+    items += [(name, "dot", SIGN_BGR[sorted(ks & sign_kinds)[0]]) for name, ks in groups if ks & sign_kinds]
+    if sign_kinds:
+        items.append(("(a sign's tick: the way it faces)", "text", None))
+    items.append(("10 m", "scale", (255, 255, 255)))
+    font, scale, row_h = cv2.FONT_HERSHEY_SIMPLEX, 0.4, 20
+    widths = [{"scale": int(10 * px_per_m), "text": -6}.get(kind, 16) + 6 + cv2.getTextSize(t, font, scale, 1)[0][0] + 14
+              for t, kind, _ in items]
+    rows, x = 1, 6
+    for w in widths:  # how many rows the items wrap to
+        if x + w > width and x > 6:
+            rows, x = rows + 1, 6
+        x += w
+    strip = np.full((rows * row_h + 6, width, 3), 30, np.uint8)
+    x, y = 6, 4
+    for (text, kind, col), w in zip(items, widths):
+        if x + w > width and x > 6:
+            x, y = 6, y + row_h
+        cy = y + row_h // 2
+        if kind == "box":
+            cv2.rectangle(strip, (x, cy - 6), (x + 16, cy + 6), ground, -1)
+            cv2.rectangle(strip, (x + 2, cy - 4), (x + 14, cy + 4), col, -1)
+            sw = 16
+        elif kind == "line":
+            cv2.line(strip, (x, cy), (x + 16, cy), col, 2, cv2.LINE_AA)
+            sw = 16
+        elif kind == "dot":
+            cv2.circle(strip, (x + 8, cy), 5, col, -1, cv2.LINE_AA)
+            sw = 16
+        elif kind == "text":
+            sw = -6
+        else:  # the scale bar, 10 m long at the map's scale
+            sw = int(10 * px_per_m)
+            cv2.line(strip, (x, cy), (x + sw, cy), col, 2)
+            for end in (x, x + sw):
+                cv2.line(strip, (end, cy - 4), (end, cy + 4), col, 2)
+        cv2.putText(strip, text, (x + sw + 6, cy + 5), font, scale, (235, 235, 235), 1, cv2.LINE_AA)
+        x += w
+    return strip
