@@ -48,8 +48,9 @@ def export_signs(ckpt: str | Path, out: str | Path, int8: bool = False, metrics:
 
 def _val_crops(roots: list[str], spec) -> tuple[list[np.ndarray], np.ndarray] | None:
     import cv2
-    from signlane_train.sign_data import list_crops, split_of
-    items = [it for it in list_crops([Path(r) for r in roots]) if split_of(it[0], 0.1) == "val"]
+    from signlane.splits import split_of
+    from signlane_train.sign_data import crop_key, list_crops
+    items = [it for it in list_crops([Path(r) for r in roots]) if split_of(crop_key(it[0])) == "val"]
     if not items:
         return None
     return [cv2.imread(str(p)) for p, _ in items], np.array([label for _, label in items])

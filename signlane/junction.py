@@ -370,16 +370,20 @@ def _dead_end(scan, group: np.ndarray, beyond: np.ndarray, view: np.ndarray, p: 
     if verge is None:
         return None
     edge = (scan.edge_r if sgn > 0 else scan.edge_l)[group]
-    ends, goes_on = [], 0
+    ends, on, goes_on = [], 0, 0
     for i, e in zip(group, edge):
         kind, reach = _row_reach(scan, int(i), float(e), sgn, verge, p)
         if kind == "end":
             ends.append(reach)
-        elif kind == "on" and reach >= p.goes_on_m:
-            goes_on += 1
+        elif kind == "on":
+            on += 1
+            goes_on += reach >= p.goes_on_m
     if goes_on >= max(3, len(ends)):
         return False
-    if len(ends) < 3:  # (a barrier beside the road may hide all but the far rows of a side road)
+    # fewer ends than rows running to the view's edge: the ends are the side road's far side seen
+    # askew (the car still turning out of a bend), not its end. And a barrier beside the road
+    # may hide all but the far rows of a short side road: three rows that see its end will do
+    if len(ends) < 3 or on >= len(ends):
         return None
     x_end = float(np.median(edge)) + sgn * float(np.max(ends))
     far = float(scan.y[group[-1]])

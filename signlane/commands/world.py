@@ -96,6 +96,8 @@ def add_demo(sub) -> None:
                    help="how roads look: VIA's kerbed carriageway (default) or painted lanes")
     p.add_argument("--seed", type=int, default=0, help="seed of a random track (default 0)")
     p.add_argument("--laps", type=positive, default=1, help="laps to drive (default 1)")
+    p.add_argument("--max-seconds", type=float, default=600.0,
+                   help="stop after this much simulated time, laps done or not (default 600)")
     p.add_argument("--size", type=size_arg, default=(640, 480), help="frame size WxH (default 640x480)")
     p.add_argument("--lanes", help="lane method (default from the config)")
     p.set_defaults(func=_run_demo)
@@ -111,7 +113,10 @@ def _run_demo(args) -> int:
         config = Config.load(None, [f"lanes.method={args.lanes}"] if args.lanes else [])
     except ValueError as e:
         raise UserError(str(e)) from None
-    rep = run_demo(args.out, track=track, laps=args.laps, width=args.size[0], height=args.size[1], config=config)
+    if not args.max_seconds > 0:
+        raise UserError(f"--max-seconds must be > 0, not {args.max_seconds:g}")
+    rep = run_demo(args.out, track=track, laps=args.laps, width=args.size[0], height=args.size[1], config=config,
+                   max_seconds=args.max_seconds)
     print(format_report(rep))
     for name, path in rep["files"].items():
         print(f"{name:>8}: {path}")

@@ -231,9 +231,18 @@ async def _realtime(sim: Simulator, ws, progress) -> None:
         await asyncio.gather(reader, return_exceptions=True)
 
 
-async def _client(sim: Simulator, url: str, lockstep: bool, progress) -> dict:
+async def _client(sim: Simulator, url: str, lockstep: bool, progress, wait_s: float) -> dict:
     from websockets.asyncio.client import connect
-    async with connect(url, max_size=None) as ws:
+    deadline = time.monotonic() + wait_s
+    while True:  # a server started just before (`signlane drive & signlane sim`) may not listen yet
+        try:
+            ws = await connect(url, max_size=None)
+            break
+        except ConnectionRefusedError:
+            if time.monotonic() >= deadline:
+                raise
+            await asyncio.sleep(0.25)
+    async with ws:
         await (_lockstep if lockstep else _realtime)(sim, ws, progress)
     return sim.report()
 
@@ -247,7 +256,9 @@ def _decode(reply) -> tuple[float, float] | None:
         return None
 
 
-def run_client(sim: Simulator, url: str = "ws://127.0.0.1:4567", lockstep: bool = True, progress=None) -> dict:
+def run_client(sim: Simulator, url: str = "ws://127.0.0.1:4567", lockstep: bool = True, progress=None,
+               wait_s: float = 10.0) -> dict:
     """Drive `sim` as a WebSocket client of the drive server at `url` (see the module docstring:
-    real time is VIA's behaviour; lockstep waits for replies and adds the `"time"` key)."""
-    return asyncio.run(_client(sim, url, lockstep, progress))
+    real time is VIA's behaviour; lockstep waits for replies and adds the `"time"` key). A
+    refused connection is tried again for up to wait_s seconds (the server may be starting)."""
+    return asyncio.run(_client(sim, url, lockstep, progress, wait_s))
