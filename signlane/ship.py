@@ -8,9 +8,11 @@ before it is copied in (temp file, then rename), so a model that would not drive
 from __future__ import annotations
 
 import hashlib
+import json
+from datetime import datetime, timezone
 from pathlib import Path
 
-from signlane.fileio import atomic_write_bytes
+from signlane.fileio import atomic_write_bytes, atomic_write_json
 
 MODELS_DIR = Path(__file__).resolve().parent / "models"
 KINDS = ("signs", "lanes")
@@ -50,7 +52,29 @@ def ship_model(src: str | Path, kind: str, models_dir: Path = MODELS_DIR) -> dic
         raise ShipError(f"{src} is already the shipped {kind} model")
     model = _load(src, kind)
     data = src.read_bytes()
+    sha = hashlib.sha256(data).hexdigest()
+    card = dst.with_suffix(".json")
+    new_card = _card(kind, src, sha, model, card)
     atomic_write_bytes(dst, data)
-    return {"shipped": str(dst), "from": str(src), "sha256": hashlib.sha256(data).hexdigest(),
-            "data_hash": model.meta.get("data_hash", "unknown"), "metrics": model.metrics,
-            "card": str(dst.with_suffix(".json"))}
+    atomic_write_json(card, new_card)
+    return {"shipped": str(dst), "from": str(src), "sha256": sha,
+            "data_hash": model.meta.get("data_hash", "unknown"), "metrics": model.metrics, "card": str(card)}
+
+
+def _card(kind: str, src: Path, sha: str, model, old_path: Path) -> dict:
+    """The model card for a shipped file: what the file itself says (task, classes, input,
+    data hash, the metrics its export recorded) and where it came from; the card of the model it
+    replaces is kept under "replaced" (its recipe and test-set numbers are that model's, not
+    this one's: measure this one with `signlane eval` and add them)."""
+    try:
+        old = json.loads(old_path.read_text()) if old_path.is_file() else None
+    except (OSError, ValueError):
+        old = None
+    if isinstance(old, dict):
+        old.pop("replaced", None)  # one generation back is enough to see what changed
+    return {"model": f"{kind}.onnx", "task": model.meta.get("task"), "classes": list(model.classes),
+            "input": json.loads(model.input.to_json()),
+            "status": "shipped", "status_note": f"shipped by `signlane ship {src} --as {kind}` on "
+            f"{datetime.now(timezone.utc).date().isoformat()}; metrics are the ones its export recorded",
+            "sha256": sha, "data_hash": model.meta.get("data_hash", "unknown"), "metrics": model.metrics,
+            "shipped_from": str(src.resolve()), "replaced": old}

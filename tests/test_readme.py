@@ -57,7 +57,7 @@ def shrink(cmd: str, models: Path) -> str:
             p = re.sub(r"(signlane eval (lanes|proposals))", r"\1 --n 4", p, count=1)
         if re.match(r"\s*signlane ship\b", p):
             p += f" --into {models}"
-        if re.match(r"\s*\S+ benchmarks/(render|lanes|drive)\.py", p):
+        if re.match(r"\s*\S+ benchmarks/(render|lanes|drive|pipeline)\.py", p):
             p += " --frames 3 --repeats 1" if "drive.py" not in p else " --frames 5 --repeats 1"
         if re.match(r"\s*\S+ benchmarks/signs\.py", p):
             p += " --repeats 1"

@@ -84,6 +84,12 @@ def test_export_refuses_the_models_folder_and_ship_is_the_explicit_step(sign_rec
     report = json.loads(capsys.readouterr().out)
     assert (into / "signs.onnx").read_bytes() == model.read_bytes()
     assert report["sha256"] == hashlib.sha256(model.read_bytes()).hexdigest() and report["metrics"]["val_acc"] > 0
+    card = json.loads((into / "signs.json").read_text())  # the card now describes the shipped file
+    assert card["sha256"] == report["sha256"] and card["metrics"] == report["metrics"] and card["replaced"] is None
+    assert main(["ship", str(model), "--as", "signs", "--into", str(into / "again")]) == 0
+    (into / "again" / "signs.json").write_text(json.dumps({"model": "old", "replaced": {"x": 1}}))
+    assert main(["ship", str(model), "--as", "signs", "--into", str(into / "again")]) == 0
+    assert json.loads((into / "again" / "signs.json").read_text())["replaced"] == {"model": "old"}
     assert main(["ship", str(model), "--as", "lanes", "--into", str(into)]) == 2  # a sign model is no lane model
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "signs.onnx" in err[0] and "lane-segmentation" in err[0]

@@ -177,6 +177,8 @@ class Driver:
         signs = self._signs(image, pose)
         t3 = time.perf_counter()
         timing["signs"] = (t3 - t2) * 1e3
+        if self.signs is not None and self._worker is None:  # its parts (in the worker: another thread's)
+            timing.update({f"signs_{k}": v for k, v in self.signs.last_ms.items()})
         was = self.behaviour.path is not None
         steering, throttle, state = self.behaviour.step(t, pose, self.odometry.distance_m, telemetry.speed_mps,
                                                         lane, view, two_lane)
