@@ -144,7 +144,10 @@ def measure(name: str, method: str | None, signs: bool, messages: list[bytes], r
             "base": statistics.median(float(np.median(b)) for b, _ in base_runs),
             "fps": statistics.median(f for _, f in runs), "flood": answers_s,
             # lockstep never skips, so every skip happened during the floods
-            "driven": 100.0 * (1 - srv.totals["skipped"] / flood_frames)}
+            "driven": 100.0 * (1 - srv.totals["skipped"] / flood_frames),
+            # inside the server over the whole run (lockstep and floods): its own split of the time
+            "decode": srv.totals.get("decode_ms_median", float("nan")),
+            "perceive": srv.totals.get("perceive_ms_median", float("nan"))}
 
 
 def main() -> None:
@@ -166,13 +169,17 @@ def main() -> None:
         default = Config().lanes.method  # and the default driver as `signlane drive` runs it: signs on
         rows.append(measure(f"{default} + signs", default, True, messages, args.repeats, base_url))
     print(f"640x480 frames, {kb:.0f} KB per message, {args.frames} frames x {args.repeats} repeats (medians)")
-    print(table(["server", "median ms", "p99 ms", "base ms", "x base", "lockstep fps", "flood ans/s", "driven %"],
-                [[r["name"], f"{r['median']:.1f}", f"{r['p99']:.1f}", f"{r['base']:.1f}", f"{r['ratio']:.2f}",
-                  f"{r['fps']:.1f}", f"{r['flood']:.0f}", f"{r['driven']:.0f}"] for r in rows if "error" not in r]))
+    print(table(["server", "answer median ms", "answer p99 ms", "decode ms", "perceive ms", "base ms", "x base",
+                 "lockstep fps", "flood ans/s", "driven %"],
+                [[r["name"], f"{r['median']:.1f}", f"{r['p99']:.1f}", f"{r['decode']:.1f}", f"{r['perceive']:.1f}",
+                  f"{r['base']:.1f}", f"{r['ratio']:.2f}", f"{r['fps']:.1f}", f"{r['flood']:.0f}", f"{r['driven']:.0f}"]
+                 for r in rows if "error" not in r]))
     for r in rows:
         if "error" in r:
             print(f"{r['name']}: unavailable: {r['error'][:90]}")
-    print("base ms: the baseline server timed in the same repeats; x base: median of per-repeat ratios. "
+    print("answer: message in -> answer out at the client (lockstep); decode and perceive: the server's own split "
+          "(medians over the run); base ms: the baseline server timed in the same repeats; x base: median of "
+          "per-repeat ratios. "
           "Shared 2-core machine: absolute times are upper bounds.")
 
 if __name__ == "__main__":

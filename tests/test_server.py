@@ -275,7 +275,11 @@ def test_busy_driver_answers_every_frame_at_once_without_backlog(frames):
             assert answers[:4] == [SAFE] * 4 and answers[4] == {"throttle": 0.5, "steering": 0.25}
             assert ask(ws, tel(frames[0], speed=13.0)) == SAFE  # a driver exception: safe answer
             assert ask(ws, tel(frames[0])) == {"throttle": 0.5, "steering": 0.25}  # and it goes on
-    assert srv.totals == {"frames": 7, "processed": 2, "skipped": 4, "bad": 1}
+    counts = {k: srv.totals[k] for k in ("frames", "processed", "skipped", "bad")}
+    assert counts == {"frames": 7, "processed": 2, "skipped": 4, "bad": 1}
+    # the run's latency split: decode and perceive of driven frames, answer of every answered one
+    assert 0 < srv.totals["decode_ms_median"] <= srv.totals["decode_ms_p99"]
+    assert srv.totals["perceive_ms_median"] >= 0 and srv.totals["answer_ms_p99"] >= srv.totals["answer_ms_median"]
 
 
 def test_record_writes_a_readable_dataset(frames, messages, tmp_path):

@@ -7,6 +7,7 @@ from __future__ import annotations
 import logging
 import re
 import time
+from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -64,6 +65,9 @@ class ErrorLog:
         return printed
 
 
+RUN_SAMPLES = 20000
+
+
 @dataclass
 class Rates:
     """Counters and latencies since the last report, plus running totals for the final summary."""
@@ -72,9 +76,13 @@ class Rates:
     processed: int = 0  # frames the driver ran on
     skipped: int = 0  # frames answered with the latest command because the driver was busy
     bad: int = 0  # frames answered with the safe command
-    step_ms: list[float] = field(default_factory=list)  # decode + Driver.step, in the worker
-    answer_ms: list[float] = field(default_factory=list)  # frame received -> answer sent
+    decode_ms: list[float] = field(default_factory=list)  # the message decoded, in the worker
+    perceive_ms: list[float] = field(default_factory=list)  # Driver.step (perception, planning, control)
+    answer_ms: list[float] = field(default_factory=list)  # frame received -> answer sent (waits included)
     totals: dict[str, int] = field(default_factory=lambda: {"frames": 0, "processed": 0, "skipped": 0, "bad": 0})
+    # the run's latencies for its summary (the last RUN_SAMPLES of each: a long run stays bounded)
+    run_ms: dict[str, deque] = field(default_factory=lambda: {k: deque(maxlen=RUN_SAMPLES)
+                                                              for k in ("decode", "perceive", "answer")})
     since: float = field(default_factory=time.monotonic)
 
     def report(self, clients: int, now: float | None = None) -> str | None:
@@ -84,14 +92,26 @@ class Rates:
         line = None
         if self.frames:
             line = (f"{clients} client(s): {self.frames / dt:.1f} frames/s in, {self.processed / dt:.1f}/s driven, "
-                    f"{self.skipped} skipped (driver busy), {self.bad} bad; step {_ms(self.step_ms)}; "
-                    f"answer {_ms(self.answer_ms)}")
+                    f"{self.skipped} skipped (driver busy), {self.bad} bad; decode {_ms(self.decode_ms)}; "
+                    f"perceive {_ms(self.perceive_ms)}; answer {_ms(self.answer_ms)}")
         for k in self.totals:
             self.totals[k] += getattr(self, k)
+        for k in self.run_ms:
+            self.run_ms[k].extend(getattr(self, f"{k}_ms"))
         self.frames = self.processed = self.skipped = self.bad = 0
-        self.step_ms, self.answer_ms = [], []
+        self.decode_ms, self.perceive_ms, self.answer_ms = [], [], []
         self.since = now
         return line
+
+
+    def summary(self) -> dict[str, float]:
+        """Median and p99 ms of decode, perceive and answer over the run (call after report)."""
+        out = {}
+        for k, v in self.run_ms.items():
+            if v:
+                out[f"{k}_ms_median"] = round(float(np.median(v)), 2)
+                out[f"{k}_ms_p99"] = round(float(np.percentile(v, 99)), 2)
+        return out
 
 
 def _ms(values: list[float]) -> str:

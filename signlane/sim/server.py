@@ -67,12 +67,13 @@ class _Result:
     """What a worker hands back to the event loop for one frame."""
 
     answer: str
-    step_ms: float
+    step_ms: float  # decode + perceive
     error: str = ""
     perception: Any = None
     command: Any = None
     telemetry: Any = None
     cancelled: bool = False  # the connection closed before the frame was driven
+    decode_ms: float = 0.0  # of step_ms, the message's: JSON, numbers, base64, JPEG checks and decoding
 
 
 class _Server:
@@ -117,7 +118,7 @@ class _Server:
         if self.recorder:
             self.recorder.close()
         self.rates.report(self.clients)
-        return dict(self.rates.totals)
+        return {**self.rates.totals, **self.rates.summary()}
 
 
 class _Connection:
@@ -192,7 +193,8 @@ class _Connection:
             self.server.errors.warning(f"{res.error}; answered with the safe command", who=f"client {self.cid}")
         else:
             rates.processed += 1
-            rates.step_ms.append(res.step_ms)
+            rates.decode_ms.append(res.decode_ms)
+            rates.perceive_ms.append(res.step_ms - res.decode_ms)
         self.latest = res.answer
         await self.send(res.answer, t_recv)
         if not res.error:
@@ -208,9 +210,10 @@ class _Connection:
             return _Result(SAFE_COMMAND, (time.perf_counter() - t0) * 1e3, str(e))
         if self.closed:  # nobody is left to answer: spare the CPU the step
             return _Result(SAFE_COMMAND, 0.0, cancelled=True)
+        t1 = time.perf_counter()
         perception, cmd = self.driver.step(tel)
         answer = encode_command(cmd.steering, cmd.throttle)
-        return _Result(answer, (time.perf_counter() - t0) * 1e3, "", perception, cmd, tel)
+        return _Result(answer, (time.perf_counter() - t0) * 1e3, "", perception, cmd, tel, decode_ms=(t1 - t0) * 1e3)
 
     async def send(self, answer: str, t_recv: float) -> None:
         try:
