@@ -67,6 +67,11 @@ def draw_topdown(scene: Scene, px_per_cell: float = PX_PER_CELL, path_xy: np.nda
             continue
         poly = np.round(to_px(p.verts[p.starts[i]:p.starts[i + 1]]) * 16).astype(np.int32)
         cv2.fillPoly(img, [poly], colour.get(layer, lk.white), cv2.LINE_AA, 4)
+    # the path under the signs, so that their labels stay readable
+    if path_xy is not None and len(path_xy) > 1:
+        pts = np.round(to_px(path_xy) * 16).astype(np.int32)
+        cv2.polylines(img, [pts], False, (0, 0, 255), 2, cv2.LINE_AA, 4)
+        cv2.circle(img, tuple(int(v) for v in to_px(path_xy[:1])[0]), 4, (0, 255, 0), -1)
     px_per_m = k
     for obj in scene.objects if signs else []:
         c = to_px([[obj.x, obj.y]])[0]
@@ -77,12 +82,10 @@ def draw_topdown(scene: Scene, px_per_cell: float = PX_PER_CELL, path_xy: np.nda
         if is_sign:
             tip = c + 2.0 * px_per_m * np.array([np.cos(obj.facing), -np.sin(obj.facing)])
             cv2.line(img, tuple(int(v) for v in c), tuple(int(v) for v in tip), col, 1, cv2.LINE_AA)
-            cv2.putText(img, obj.kind, (int(c[0]) + r + 1, int(c[1]) - r), cv2.FONT_HERSHEY_SIMPLEX,
+            tw = cv2.getTextSize(obj.kind, cv2.FONT_HERSHEY_SIMPLEX, 0.35, 1)[0][0]
+            tx = int(c[0]) + r + 1 if int(c[0]) + r + 1 + tw < w else int(c[0]) - r - 1 - tw  # inside the picture
+            cv2.putText(img, obj.kind, (max(0, tx), max(10, int(c[1]) - r)), cv2.FONT_HERSHEY_SIMPLEX,
                         0.35, (255, 255, 255), 1, cv2.LINE_AA)
-    if path_xy is not None and len(path_xy) > 1:
-        pts = np.round(to_px(path_xy) * 16).astype(np.int32)
-        cv2.polylines(img, [pts], False, (0, 0, 255), 2, cv2.LINE_AA, 4)
-        cv2.circle(img, tuple(int(v) for v in to_px(path_xy[:1])[0]), 4, (0, 255, 0), -1)
     for x, y, col in marks or []:
         cv2.drawMarker(img, tuple(int(v) for v in to_px([[x, y]])[0]), col, cv2.MARKER_CROSS, 10, 2)
     if legend is None:
