@@ -9,20 +9,13 @@ import cv2
 import numpy as np
 
 from signlane_data.common import atomic_imwrite
-from signlane.draw import contact_sheet
+from signlane.draw import SHEET_BG as BG, contact_sheet, put_label
 from signlane.world.art import SIGN_CLASSES
 
-BG = (40, 40, 40)  # BGR sheet background
 MASK_BGR = np.array([255, 0, 255], np.float32)  # magenta: unlike any road, sky or sign colour
 MASK_ALPHA = 0.55
 LINE_BGR = {"left": (255, 160, 0), "right": (0, 140, 255), "center": (0, 255, 255)}
 HEADER_H = 22
-
-
-def _put_label(img: np.ndarray, text: str, org: tuple[int, int], scale: float = 0.4) -> None:
-    # black outline under white text stays readable on any tile
-    cv2.putText(img, text, org, cv2.FONT_HERSHEY_SIMPLEX, scale, (0, 0, 0), 3, cv2.LINE_AA)
-    cv2.putText(img, text, org, cv2.FONT_HERSHEY_SIMPLEX, scale, (255, 255, 255), 1, cv2.LINE_AA)
 
 
 def lane_overlay(image: np.ndarray, mask: np.ndarray, lane: dict | None = None) -> np.ndarray:
@@ -85,7 +78,7 @@ def write_sign_preview(out_dir: str | Path, per_class: int = 16, classes: Sequen
     for name in classes:
         files = sorted((out_dir / name).glob("*.png"))
         header = np.full((HEADER_H, width, 3), (70, 50, 30), np.uint8)
-        _put_label(header, f"{name}  ({len(files)} crops)", (4, HEADER_H - 7), 0.5)
+        put_label(header, f"{name}  ({len(files)} crops)", (4, HEADER_H - 7), 0.5)
         crops = [cv2.imread(str(p), cv2.IMREAD_COLOR) for p in _spread(files, per_class)]
         row = np.full((tile[1], width, 3), BG, np.uint8)
         if crops:

@@ -48,9 +48,8 @@ def export_signs(ckpt: str | Path, out: str | Path, int8: bool = False, metrics:
 
 def _val_crops(roots: list[str], spec) -> tuple[list[np.ndarray], np.ndarray] | None:
     import cv2
-    from signlane.splits import split_of
-    from signlane_train.sign_data import crop_key, list_crops
-    items = [it for it in list_crops([Path(r) for r in roots]) if split_of(crop_key(it[0])) == "val"]
+    from signlane_train.sign_data import list_crops, on_side
+    items = on_side(list_crops([Path(r) for r in roots]), "val")
     if not items:
         return None
     return [cv2.imread(str(p)) for p, _ in items], np.array([label for _, label in items])

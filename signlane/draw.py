@@ -1,5 +1,5 @@
-"""Overlays for people: lane polylines, masks, sign boxes, a HUD, contact sheets, bar charts
-(video files: signlane/video_out.py).
+"""Overlays for people: lane polylines, masks, sign boxes, a HUD, outlined labels, contact sheets
+(charts: signlane/plots.py; video files: signlane/video_out.py).
 
 All functions take and return uint8 (H, W, 3) BGR images; drawing functions work in place and
 also return the image for chaining.
@@ -72,6 +72,13 @@ def draw_hud(image: np.ndarray, lines: Sequence[str], origin=(4, 4)) -> np.ndarr
 SHEET_BG = (40, 40, 40)  # BGR background of contact sheets
 
 
+def put_label(image: np.ndarray, text: str, org: tuple[int, int], scale: float = 0.4) -> np.ndarray:
+    """White text with a black outline, readable on any picture (in place)."""
+    cv2.putText(image, text, org, cv2.FONT_HERSHEY_SIMPLEX, scale, (0, 0, 0), 3, cv2.LINE_AA)
+    cv2.putText(image, text, org, cv2.FONT_HERSHEY_SIMPLEX, scale, (255, 255, 255), 1, cv2.LINE_AA)
+    return image
+
+
 def contact_sheet(images: Sequence[np.ndarray], cols: int = 4, tile: tuple[int, int] | None = None,
                   captions: Sequence[str] | None = None, gap: int = 2, scale: float = 0.35,
                   band: bool = False) -> np.ndarray:
@@ -97,12 +104,11 @@ def contact_sheet(images: Sequence[np.ndarray], cols: int = 4, tile: tuple[int, 
         sheet[y:y + th, x:x + tw] = _fit(im, (tw, th))
         lines = texts[i]
         for k, text in enumerate(lines):
-            if extra:
-                org = (x + 2, y + th + (k + 1) * lh)
+            if extra:  # on the band: plain white on the sheet's dark background
+                cv2.putText(sheet, text, (x + 2, y + th + (k + 1) * lh), cv2.FONT_HERSHEY_SIMPLEX, scale,
+                            (255, 255, 255), 1, cv2.LINE_AA)
             else:
-                org = (x + 3, y + th - 5 - (len(lines) - 1 - k) * lh)
-                cv2.putText(sheet, text, org, cv2.FONT_HERSHEY_SIMPLEX, scale, (0, 0, 0), 3, cv2.LINE_AA)
-            cv2.putText(sheet, text, org, cv2.FONT_HERSHEY_SIMPLEX, scale, (255, 255, 255), 1, cv2.LINE_AA)
+                put_label(sheet, text, (x + 3, y + th - 5 - (len(lines) - 1 - k) * lh), scale)
     return sheet
 
 

@@ -370,9 +370,11 @@ def _dead_end(scan, group: np.ndarray, beyond: np.ndarray, view: np.ndarray, p: 
     if verge is None:
         return None
     edge = (scan.edge_r if sgn > 0 else scan.edge_l)[group]
+    h, w = scan.road.shape
+    uv = np.rint(scan.bev.ground_to_bev(np.column_stack([edge, scan.y[group]]))).astype(int)  # each row's edge pixel
     ends, on, goes_on = [], 0, 0
-    for i, e in zip(group, edge):
-        kind, reach = _row_reach(scan, int(i), float(e), sgn, verge, p)
+    for u, v in zip(np.clip(uv[:, 0], 0, w - 1), np.clip(uv[:, 1], 0, h - 1)):
+        kind, reach = _row_reach(scan, int(u), int(v), sgn, verge, p)
         if kind == "end":
             ends.append(reach)
         elif kind == "on":
@@ -402,16 +404,14 @@ def _dead_end(scan, group: np.ndarray, beyond: np.ndarray, view: np.ndarray, p: 
     return True
 
 
-def _row_reach(scan, i: int, edge_x: float, sgn: float, verge: np.ndarray, p: ScanJunctionParams):
-    """How far row i's road goes past its edge (metres), outwards to side sgn: ("end", m) where
-    the verge's own ground follows it for `end_seen_m`; ("on", m) where road (or something in
-    the way, with road beyond it) runs to the view's edge; ("unknown", 0) otherwise. Things that
-    are neither road nor verge (a barrier, its shadow) are looked past, not taken for the end."""
+def _row_reach(scan, u: int, v: int, sgn: float, verge: np.ndarray, p: ScanJunctionParams):
+    """How far the road of bird's-eye row v goes past its edge at column u (metres), outwards to
+    side sgn: ("end", m) where the verge's own ground follows it for `end_seen_m`; ("on", m)
+    where road runs to the view's edge (within 0.5 m of the last ground seen); ("unknown", 0)
+    otherwise. Things that are neither road nor verge (a barrier, its shadow) are looked past,
+    not taken for the end."""
     b = scan.bev
-    (u, v), = b.ground_to_bev(np.array([[edge_x, float(scan.y[i])]]))
-    h, w = scan.road.shape
-    v, u = int(np.clip(round(v), 0, h - 1)), int(np.clip(round(u), 0, w - 1))
-    cols = slice(u, w) if sgn > 0 else slice(u, None, -1) if u > 0 else slice(0, 1)
+    cols = slice(u, None) if sgn > 0 else slice(u, None, -1)
     road, vis = scan.road[v, cols], scan.visible[v, cols]
     d = np.abs(scan.lab[v, cols] - verge)
     verge_px = vis & ~road & (d[:, 0] < 30) & (d[:, 1] < 12) & (d[:, 2] < 12)

@@ -37,8 +37,8 @@ def bar_chart(title: str, labels: Sequence[str], series: dict[str, Sequence[floa
         vals = np.asarray(values, float)
         bars = ax.bar(x + (i - (k - 1) / 2) * width, np.nan_to_num(vals), width, label=name)
         ax.bar_label(bars, labels=[f"{v:.3g}" if np.isfinite(v) else "n/a" for v in vals], fontsize=7, padding=2)
-    ax.set_xticks(x, labels, rotation=30 if max((len(s) for s in labels), default=0) > 10 else 0,
-                  ha="right" if max((len(s) for s in labels), default=0) > 10 else "center", fontsize=8)
+    long = max((len(s) for s in labels), default=0) > 10  # turned, so that full names fit
+    ax.set_xticks(x, labels, rotation=30 if long else 0, ha="right" if long else "center", fontsize=8)
     ax.set_title(title)
     ax.set_ylabel(ylabel)
     if ymax is not None:

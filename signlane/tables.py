@@ -25,8 +25,7 @@ def table(headers: Sequence[str], rows: Iterable[Sequence[object]], markdown: bo
         if len(r) != len(head):
             raise ValueError(f"table row has {len(r)} cells for {len(head)} columns: {r}")
     if markdown:
-        lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-        return "\n".join(lines + ["| " + " | ".join(r) + " |" for r in body])
+        return "\n".join([markdown_row(head), "|" + "---|" * len(head)] + [markdown_row(r) for r in body])
     widths = [max([len(h)] + [len(r[i]) for r in body]) for i, h in enumerate(head)]
     right = [bool(body) and all(_is_number(r[i]) for r in body) for i in range(len(head))]
 

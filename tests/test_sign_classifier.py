@@ -175,8 +175,8 @@ def test_sign_report_traces_every_wrong_crop_to_its_file(tmp_path):
     rows = (out / "errors_stop.txt").read_text().splitlines()[1:]
     assert [r.split("\t")[1] for r in rows] == [str(files[1]), str(files[4])]
     assert [r.split("\t")[2] for r in rows] == ["left", "left"] and rows[1].endswith(f"{score[4]:.4f}")
-    sheet = cv2.imread(str(out / "errors_stop.png"))
-    assert sheet is not None and sheet.shape[1] >= 2 * 96
+    sheet = cv2.imread(str(out / "errors_stop.png"))  # two 112 px tiles side by side, captions on a band below
+    assert sheet.shape[1] == 2 * (112 + 2) + 2 and sheet.shape[0] > 112 + 2 * 14
 
 
 def _frame_with_stop(size: int) -> tuple[np.ndarray, tuple[int, int, int, int]]:

@@ -18,9 +18,9 @@ import numpy as np
 import torch
 from torch.utils.data import DataLoader, Dataset
 
-from signlane.splits import split_of
 from signlane.lanes.seg_model import DEFAULT_SPEC, mask_target, preprocess_frames
 from signlane.onnx_model import InputSpec
+from signlane.splits import VAL_FRACTION, split_of
 from signlane_train.common import seed_worker
 
 IMAGE_EXT = (".jpg", ".jpeg", ".png", ".bmp")
@@ -104,7 +104,7 @@ class FrameDataset(Dataset):
 
 
 class LaneDataModule(L.LightningDataModule):
-    def __init__(self, roots: list[str | Path], batch_size: int = 32, val_fraction: float = 0.1,
+    def __init__(self, roots: list[str | Path], batch_size: int = 32, val_fraction: float = VAL_FRACTION,
                  spec: InputSpec = DEFAULT_SPEC, workers: int = 0, seed: int = 0):
         super().__init__()
         self.seed = seed

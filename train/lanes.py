@@ -12,6 +12,7 @@ import torch
 from signlane.eval_masks import MaskCounts
 from signlane.fileio import atomic_write_text
 from signlane.lanes.seg_model import DEFAULT_SPEC, marking_probability, preprocess_frames, to_frame_mask
+from signlane.splits import VAL_FRACTION
 from signlane_train.common import ScaleOut, build_trainer, resume_path, save_run_config
 from signlane_train.lane_data import FrameDataset, LaneDataModule, read_pair
 from signlane_train.lane_net import count_parameters
@@ -22,7 +23,7 @@ log = logging.getLogger(__name__)
 
 
 def train_lanes(data: list[str | Path], out: str | Path, epochs: int = 15, batch_size: int = 32, lr: float = 4e-3,
-                width: int = 16, val_fraction: float = 0.1, patience: int = 5, seed: int = 0, resume: bool = False,
+                width: int = 16, val_fraction: float = VAL_FRACTION, patience: int = 5, seed: int = 0, resume: bool = False,
                 scale: ScaleOut = ScaleOut(), workers: int = 1, quiet: bool = False, pos_weight: float = 4.0,
                 eval_frames: int = 300, threads: int = 0, deterministic: bool = True) -> dict:
     """Train; writes checkpoints/, logs/, tensorboard/, samples/epoch_<k>.png, config.json and

@@ -17,7 +17,7 @@ from torch.utils.data import DataLoader, Dataset
 
 from signlane.onnx_model import InputSpec
 from signlane.signs.classifier import DEFAULT_SPEC, preprocess_crops
-from signlane.splits import split_of
+from signlane.splits import VAL_FRACTION, split_of
 from signlane.world.art import SIGN_CLASSES
 from signlane_train.common import seed_worker
 
@@ -43,6 +43,11 @@ def list_crops(roots: list[Path], classes: tuple[str, ...] = SIGN_CLASSES) -> li
 def crop_key(path: Path) -> str:
     """A crop's split key: `<class>/<file>` (the path train.txt / val.txt list)."""
     return f"{path.parent.name}/{path.name}"
+
+
+def on_side(items: list[tuple[Path, int]], side: str, val_fraction: float = VAL_FRACTION) -> list[tuple[Path, int]]:
+    """The (path, label) items on one side ('train' or 'val') of the shared split."""
+    return [it for it in items if split_of(crop_key(it[0]), val_fraction) == side]
 
 
 def train_augment(strength: float = 1.0, seed: int | None = None) -> A.Compose:
@@ -85,7 +90,7 @@ class CropDataset(Dataset):
 
 
 class SignDataModule(L.LightningDataModule):
-    def __init__(self, roots: list[str | Path], batch_size: int = 128, val_fraction: float = 0.1,
+    def __init__(self, roots: list[str | Path], batch_size: int = 128, val_fraction: float = VAL_FRACTION,
                  spec: InputSpec = DEFAULT_SPEC, workers: int = 0, augment: float = 1.0, seed: int = 0):
         super().__init__()
         self.augment, self.seed = augment, seed
@@ -94,8 +99,8 @@ class SignDataModule(L.LightningDataModule):
 
     def setup(self, stage: str | None = None) -> None:
         items = list_crops(self.roots)
-        self.train_items = [it for it in items if split_of(crop_key(it[0]), self.val_fraction) == "train"]
-        self.val_items = [it for it in items if split_of(crop_key(it[0]), self.val_fraction) == "val"]
+        self.train_items = on_side(items, "train", self.val_fraction)
+        self.val_items = on_side(items, "val", self.val_fraction)
         if not self.train_items or not self.val_items:
             raise ValueError(f"need crops on both sides of the split; got {len(self.train_items)} train, "
                              f"{len(self.val_items)} val")

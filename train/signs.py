@@ -9,6 +9,7 @@ import numpy as np
 import torch
 
 from signlane.sign_report import write_sign_report
+from signlane.splits import VAL_FRACTION
 from signlane.world.art import SIGN_CLASSES
 from signlane_train.common import ScaleOut, build_trainer, resume_path, save_run_config
 from signlane_train.run_info import RunInfo
@@ -19,7 +20,7 @@ log = logging.getLogger(__name__)
 
 
 def train_signs(data: list[str | Path], out: str | Path, epochs: int = 20, batch_size: int = 128, lr: float = 3e-3,
-                size: int = 32, val_fraction: float = 0.1, patience: int = 6, seed: int = 0, resume: bool = False,
+                size: int = 32, val_fraction: float = VAL_FRACTION, patience: int = 6, seed: int = 0, resume: bool = False,
                 scale: ScaleOut = ScaleOut(), workers: int = 0, quiet: bool = False, width: int = 16,
                 class_weights: str = "sqrt", threads: int = 0, augment: float = 1.0,
                 deterministic: bool = True) -> dict:

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 
 class UserError(Exception):
@@ -34,3 +35,25 @@ def pixels_arg(text: str) -> int:
         return parts[0] * parts[-1] if len(parts) == 2 else parts[0]
     except ValueError:
         raise argparse.ArgumentTypeError(f"pixel limit must look like 4096x4096 or 16777216, not {text!r}") from None
+
+
+def add_config_args(p, config_help: str = "TOML config file (sections camera, lanes, signs, control)") -> None:
+    """--config FILE and repeatable --set SECTION.KEY=VALUE, read by load_config."""
+    p.add_argument("--config", type=Path, help=config_help)
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                   help="override one setting, e.g. --set camera.pitch_deg=12 (repeatable)")
+
+
+def load_config(args):
+    """The Config of add_config_args' options (and of --lanes, where the command has one); a bad
+    file or setting is one UserError line."""
+    from signlane.config import Config
+    try:
+        cfg = Config.load(args.config, args.overrides)
+    except ValueError as e:
+        raise UserError(str(e)) from None
+    lanes_method = getattr(args, "lanes", None)
+    if lanes_method:
+        from dataclasses import replace
+        cfg = replace(cfg, lanes=replace(cfg.lanes, method=lanes_method))
+    return cfg

@@ -6,7 +6,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from signlane.commands.common import UserError, pixels_arg, positive
-from signlane.commands.perception import _add_config_args, _config
+from signlane.commands.common import add_config_args, load_config
 
 
 def add_drive(sub) -> None:
@@ -55,7 +55,7 @@ def add_drive(sub) -> None:
                         "larger ones get the safe answer")
     p.add_argument("--log-every", type=float, default=10.0, metavar="SEC",
                    help="seconds between rate/latency log lines (default 10)")
-    _add_config_args(p)
+    add_config_args(p)
     p.set_defaults(func=_run_drive)
 
 
@@ -64,7 +64,7 @@ def _run_drive(args) -> int:
     from signlane.sim.drive_record import RecordError
     from signlane.sim.driver import SignStageError
     from signlane.sim.server import ServerOptions, run_server
-    cfg = _config(args)
+    cfg = load_config(args)
     if args.signs is not None:
         cfg = replace(cfg, signs=replace(cfg.signs, enabled=args.signs))
     if not 0 <= args.port <= 65535:

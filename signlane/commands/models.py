@@ -6,7 +6,7 @@ import json
 import sys
 from pathlib import Path
 
-from signlane.commands.common import UserError, positive
+from signlane.commands.common import UserError, add_config_args, load_config, positive
 
 
 # --- train / export / classify --------------------------------------------------------------------
@@ -159,8 +159,9 @@ def add_ship(sub) -> None:
     p = sub.add_parser("ship", help="make an exported model the default one (signlane/models/)",
                        description="Check an exported ONNX model as the runtime loads it (contract, graph, a test "
                                    "batch) and copy it over the shipped default, signlane/models/<kind>.onnx, that "
-                                   "infer, drive, sim and demo use. Recipes never write there themselves. Update "
-                                   "the model card (<kind>.json beside it) to match.")
+                                   "infer, drive, sim and demo use. Recipes never write there themselves. The model "
+                                   "card beside it (<kind>.json) is rewritten for the shipped file, keeping the "
+                                   "card it replaces under 'replaced'.")
     p.add_argument("model", type=Path, help="exported ONNX file (e.g. runs/signs/signs.onnx)")
     p.add_argument("--as", dest="kind", required=True, choices=["signs", "lanes"], help="which default it replaces")
     p.add_argument("--into", type=Path, help="models folder (default: the package's signlane/models)")
@@ -243,9 +244,7 @@ def _add_autolabel_lanes(kinds) -> None:
                        help="keep frames whose lane confidence reaches this (default 0.7); keeping none is "
                             "exit code 1")
     lanes.add_argument("--every", type=positive, default=10, help="every Nth video frame (default 10)")
-    lanes.add_argument("--config", type=Path, help="TOML config file (the camera section matters)")
-    lanes.add_argument("--set", dest="overrides", action="append", default=[], metavar="SECTION.KEY=VALUE",
-                       help="override one setting, e.g. --set camera.pitch_deg=12 (repeatable)")
+    add_config_args(lanes, "TOML config file (the camera section matters)")
 
 
 def _run_autolabel(args) -> int:
@@ -264,10 +263,9 @@ def _run_autolabel(args) -> int:
 def _run_autolabel_lanes(args) -> int:
     from signlane_data.autolabel_lanes import autolabel_lanes
     from signlane_data.common import DatasetError
-    from signlane.config import Config
     from signlane.onnx_model import ModelError
+    cfg = load_config(args)
     try:
-        cfg = Config.load(args.config, args.overrides)
         report = autolabel_lanes(args.paths, args.out, args.method, cfg.camera, args.min_confidence, args.every)
     except (ValueError, ModelError, DatasetError) as e:
         raise UserError(str(e)) from None

@@ -6,29 +6,10 @@ import json
 import sys
 from pathlib import Path
 
-from signlane.commands.common import UserError, pixels_arg, positive, size_arg
+from signlane.commands.common import UserError, add_config_args, load_config, pixels_arg, positive, size_arg
 
 
 # --- infer -------------------------------------------------------------------------------------
-def _add_config_args(p) -> None:
-    p.add_argument("--config", type=Path, help="TOML config file (sections camera, lanes, signs, control)")
-    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="SECTION.KEY=VALUE",
-                   help="override one setting, e.g. --set camera.pitch_deg=12 (repeatable)")
-
-
-def _config(args):
-    from signlane.config import Config
-    try:
-        cfg = Config.load(args.config, args.overrides)
-    except ValueError as e:
-        raise UserError(str(e)) from None
-    lanes_method = getattr(args, "lanes", None)
-    if lanes_method:
-        from dataclasses import replace
-        cfg = replace(cfg, lanes=replace(cfg.lanes, method=lanes_method))
-    return cfg
-
-
 def add_infer(sub) -> None:
     p = sub.add_parser("infer", help="run the pipeline on images, folders and videos",
                        description="Run lane detection, sign proposals and steering on images, folders of "
@@ -47,14 +28,14 @@ def add_infer(sub) -> None:
     p.add_argument("--max-pixels", type=pixels_arg, default=4096 * 4096, metavar="WxH",
                    help="refuse images and video frames with more pixels than this, read from the file's header "
                         "before decoding (default 4096x4096)")
-    _add_config_args(p)
+    add_config_args(p)
     p.set_defaults(func=_run_infer)
 
 
 def _run_infer(args) -> int:
     from signlane.infer import run_infer
     from signlane.onnx_model import ModelError
-    cfg = _config(args)
+    cfg = load_config(args)
     try:
         summary = run_infer(args.paths, cfg, out=args.out, json_path=args.json_path, save_masks=args.save_masks,
                             progress=args.progress, max_pixels=args.max_pixels)

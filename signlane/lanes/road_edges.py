@@ -188,8 +188,9 @@ def scan_edges(road: np.ndarray, visible: np.ndarray, bev: BirdsEye, p: RoadEdge
             hist_r.append(right)
         # a row crosses a bending road aslant: its run is the width over the cosine of the edges' angle
         slant_l, slant_r = _slant(hist_l), _slant(hist_r)
-        if ok_l and ok_r and p.min_width_m < run / (0.5 * (slant_l + slant_r)) < p.max_width_m:
-            width_m = 0.9 * width_m + 0.1 * run / (0.5 * (slant_l + slant_r))
+        across = run / (0.5 * (slant_l + slant_r))
+        if ok_l and ok_r and p.min_width_m < across < p.max_width_m:
+            width_m = 0.9 * width_m + 0.1 * across
         # where an edge jumped away, it goes on from its last rows (or one width from the other)
         pl = hist_l[-1] if hist_l else None
         pr = hist_r[-1] if hist_r else None

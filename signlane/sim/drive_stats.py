@@ -103,7 +103,6 @@ class Rates:
         self.since = now
         return line
 
-
     def summary(self) -> dict[str, float]:
         """Median and p99 ms of decode, perceive and answer over the run (call after report)."""
         out = {}
