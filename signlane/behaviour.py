@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from signlane.control import PurePursuit, path_curvature
+from signlane.control import PurePursuit, path_bend, path_curvature
 from signlane.junction import JunctionView
 from signlane.odometry import OdoPose
 from signlane.types import LaneEstimate
@@ -51,13 +51,18 @@ class BehaviourParams:
     # and a long lookahead cuts them; painted roads bend gently and their far paint is noisier
     lookahead_kerbed: tuple[float, float] = (3.5, 0.3)
     lookahead_painted: tuple[float, float] = (5.0, 0.5)
-    commit_near_m: float = 12.0  # plan a junction once its side road starts this close
+    commit_near_m: float = 12.0  # plan a junction once its side road starts this close ...
+    commit_cut_m: float = 14.0  # ... or, where it starts before the view shows its side, once it is in view this close
     instruction_range_m: float = 40.0  # a turn sign applies to a junction within this distance after it
     sign_slack_m: float = 2.0  # a sign placed this much past a junction's far side (misjudged distance) still counts
     dead_memory_m: float = 6.0  # dead-end verdicts are forgotten this far after the last opening seen
     replan_margin_m: float = 4.0  # a plan may be made again until the car is this close to the junction
     aligned_rad: float = 0.3  # a junction is planned once the car points along its road within this ...
     commit_late_m: float = 6.0  # ... or, askew, once its side road is this close
+    # a lone opening with the road ending ahead, toward which the lane already bends this sharply
+    # (1/m; a 25 m circle): a bend (its outer side looks like road ending, its inner like an
+    # opening), left to the lane follower. The lane at a junction runs straight up to it
+    bend_not_junction: float = 0.04
 
 
 @dataclass
@@ -273,10 +278,17 @@ class Behaviour:
             return False
         side = [o for o in (j.right, j.left) if o is not None and o.closed]
         near = min(o.near_m for o in side)
-        if near > self.p.commit_near_m:
+        # (VIA's camera shows a painted road's left side from about 12 m on: an opening there
+        # begins at the view's edge, its near end unseen, and is as close as it can be seen)
+        if near > self.p.commit_near_m and not (near <= self.p.commit_cut_m and all(o.cut for o in side)):
             return False
         if lane.found and abs(lane.heading) > self.p.aligned_rad and near > self.p.commit_late_m:
             return False  # still turning out of a bend (or a lane shift): what it sees of the junction is askew
+        if len(exits) == 1 and len(side) == 1 and lane.found:
+            bend = path_bend(lane.path_m, self.p.curve_preview_m) or lane.curvature
+            towards = {"right": 1.0, "left": -1.0}.get(next(iter(exits)), 0.0)
+            if towards * bend > self.p.bend_not_junction:
+                return False
         y_c = float(np.mean([o.centre_m for o in side]))
         far = max(o.far_m for o in side)
         sign = self._instruction(pose, far)

@@ -56,14 +56,23 @@ def path_point(path_m: np.ndarray | None, dist_m: float, min_m: float = 3.0) -> 
     return float(path_m[i, 0]), float(path_m[i, 1])
 
 
-def path_curvature(path_m: np.ndarray | None, within_m: float) -> float:
-    """The sharpest bend (1/m, unsigned) the car would need to reach any point of a traced centre
-    line within within_m: 2|x| / (x^2 + y^2), the pure-pursuit circle to that point."""
+def path_bend(path_m: np.ndarray | None, within_m: float) -> float:
+    """path_curvature with its sign (+ = the traced centre line bends right): the circle to the
+    point within within_m that needs the sharpest one."""
     if path_m is None or len(path_m) < 2:
         return 0.0
     d2 = path_m[:, 0] ** 2 + path_m[:, 1] ** 2
-    sel = (d2 <= within_m ** 2) & (d2 > 4.0)
-    return float(np.max(2 * np.abs(path_m[sel, 0]) / d2[sel])) if sel.any() else 0.0
+    sel = np.flatnonzero((d2 <= within_m ** 2) & (d2 > 4.0))
+    if not len(sel):
+        return 0.0
+    k = 2 * path_m[sel, 0] / d2[sel]
+    return float(k[np.argmax(np.abs(k))])
+
+
+def path_curvature(path_m: np.ndarray | None, within_m: float) -> float:
+    """The sharpest bend (1/m, unsigned) the car would need to reach any point of a traced centre
+    line within within_m: 2|x| / (x^2 + y^2), the pure-pursuit circle to that point."""
+    return abs(path_bend(path_m, within_m))
 
 
 class PurePursuit:

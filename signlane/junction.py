@@ -30,6 +30,7 @@ class Opening:
     far_m: float  # where it ends (or the view ends: see `closed`)
     closed: bool  # the far edge was seen
     dead: bool | None = False  # the side road visibly ends (a dead end: never an exit); None: cannot tell
+    cut: bool = False  # it began before its strip came into view: the side road starts nearer than near_m
 
     @property
     def centre_m(self) -> float:
@@ -169,7 +170,7 @@ class JunctionDetector:
                 closed = top > 0 and bool(seen[top - 1])
                 cut = row + 1 < n and not seen[row + 1]  # it began before the strip came into view
                 if far - near >= p.min_open_m or ((cut or not closed) and far - near >= 1.5):
-                    return Opening(near, far, closed)
+                    return Opening(near, far, closed, cut=cut)
                 row = top - 1
             else:
                 row -= 1

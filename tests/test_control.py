@@ -56,6 +56,25 @@ def test_pure_pursuit_matches_the_bicycle_model_on_a_circle():
     assert steer == pytest.approx(wheel, rel=0.05)
 
 
+def test_pure_pursuit_aims_at_the_fitted_centre_at_a_bends_entry():
+    # A lane seen from 3.4 m (VIA's camera) pointing a little left at the car and bending right
+    # hard further on, as at the entry of a 12 m bend: the slope is near 0 at the car and steep
+    # 8 m out. Rebuilt from offset, heading and the curvature 8 m out, its centre came out at
+    # half its true lateral distance there and the car ran wide (off the road on loop_demo).
+    a, b = 0.063, -0.29
+    left = Boundary(np.array([a, b, -1.2]), (3.4, 11.4), 50)
+    right = Boundary(np.array([a, b, 2.0]), (3.4, 11.4), 50)
+    lane = estimate_from_fits("test", Camera(640, 480), left, right, 3.2)
+    ld = 7.5
+    true_x = float(np.polyval([a, b, 0.4], ld))  # the fitted centre at the lookahead: 1.77 m
+    assert abs(centre_x_at(lane, ld) - true_x) > 0.5  # what the old rebuild aimed at
+    c = make_controller("pure-pursuit")
+    c.lookahead, c.per_mps = ld, 0.0
+    aim = c.steer_to(true_x, ld)
+    assert c.step(lane) == pytest.approx(aim, rel=0.05)
+    assert c.step(lane) > 0.2  # a firm right turn, not the old one of about 0.1
+
+
 def test_s1_proportional_uses_the_published_gain():
     cam = Camera(640, 480)
     c = make_controller("s1-proportional", cam)

@@ -106,10 +106,15 @@ def estimate_from_fits(method: str, camera: Camera, left: Boundary | None, right
     curvature = curvature_of(centre, float(np.clip(CURVATURE_AT_M, y_lo, y_hi)))
     if confidence is None:
         confidence = 1.0 if (left.support and right.support) else 0.5
+    # the fitted centre itself, where it was seen: steering aims at a point on it. Rebuilt from
+    # offset and heading at the car and the curvature 8 m ahead instead, a bend's entry (slope
+    # near 0 at the car, steep 8 m on) comes out with half its bend and the car runs wide.
+    ys = np.arange(y_lo, y_hi + 1e-9, POLYLINE_STEP_M)
+    path = np.column_stack([np.polyval(centre, ys), ys]) if len(ys) >= 2 else None
     return LaneEstimate(method, True, offset=offset, heading=heading, curvature=curvature,
                         confidence=float(confidence), left=boundary_polyline(camera, left, y_lo, y_hi),
                         right=boundary_polyline(camera, right, y_lo, y_hi), debug_mask=debug_mask,
-                        lane_width_m=width)
+                        lane_width_m=width, path_m=path)
 
 
 def boundary_polyline(camera: Camera, b: Boundary, y_lo: float, y_hi: float) -> np.ndarray:

@@ -20,9 +20,12 @@ class Score:
         self.latency: list[float] = []
         self.offroad_events = 0
         self.offroad_log: list[float] = []
+        self.offroad_xy: list[tuple[float, float]] = []  # where: drawn on the path picture
 
-    def frame(self, t: float, cte_m: float, speed: float, latency_ms: float | None) -> bool:
-        """Record one frame; True when the car has just gone off its lane (an intervention)."""
+    def frame(self, t: float, cte_m: float, speed: float, latency_ms: float | None,
+              xy: tuple[float, float] = (0.0, 0.0)) -> bool:
+        """Record one frame (the car at world metres `xy`); True when the car has just gone off
+        its lane (an intervention)."""
         self.cte.append(abs(cte_m) / self.lane_w)
         self.speeds.append(speed)
         if latency_ms is not None:
@@ -30,6 +33,7 @@ class Score:
         if abs(cte_m) > self.offroad_m:
             self.offroad_events += 1
             self.offroad_log.append(round(t, 2))
+            self.offroad_xy.append((round(float(xy[0]), 2), round(float(xy[1]), 2)))
             return True
         return False
 
@@ -48,7 +52,8 @@ class Score:
                 "fps": 0.0, "latency_ms": {"median": round(float(np.median(lat)), 2),
                                            "p99": round(float(np.percentile(lat, 99)), 2)},
                 "dead_ends_taken": sum(bool(j.get("dead_end")) for j in course.log.junctions),
-                "junctions": course.log.junctions, "stop_log": stops, "offroad_at_s": self.offroad_log}
+                "junctions": course.log.junctions, "stop_log": stops, "offroad_at_s": self.offroad_log,
+                "offroad_xy_m": [list(p) for p in self.offroad_xy]}
 
 
 def format_report(rep: dict) -> str:

@@ -135,5 +135,7 @@ def run_session(track: Track, sim_config: SimConfig, out: Path | None, config: C
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
         atomic_write_json(out / "report.json", rep)
-        write_image(out / "path.png", draw_topdown(sim.renderer.scene, path_xy=np.array(sim.path), legend="driven path"))
+        write_image(out / "path.png", draw_topdown(sim.renderer.scene, path_xy=np.array(sim.path),
+                                                   marks=rep["offroad_xy_m"], marks_label="off the road",
+                                                   legend="driven path"))
     return rep

@@ -141,7 +141,7 @@ class Simulator:
         p = self._ahead(self.vehicle.params.wheelbase_m / 2)  # the car's origin, as VIA's referee would see it
         self.path.append((p.x, p.y))
         cte = self.course.update(self.t, p.x, p.y, p.heading, self.vehicle.speed)
-        if self.score.frame(self.t, cte, self.vehicle.speed, latency_ms):
+        if self.score.frame(self.t, cte, self.vehicle.speed, latency_ms, (p.x, p.y)):
             self._intervene()
 
     def _ahead(self, dist_m: float) -> Pose:

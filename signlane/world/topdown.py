@@ -15,6 +15,7 @@ SIGN_BGR = {"stop": (40, 40, 220), "left": (200, 120, 0), "right": (200, 120, 0)
 MINIMAP_ROAD = (73, 71, 70)
 MINIMAP_GROUND = {"grass": (41, 83, 58), "ground": (24, 37, 51), "none": (110, 108, 106)}
 PX_PER_CELL = 25
+MARK_BGR = (0, 230, 255)  # yellow crosses: where something happened (e.g. the car left the road)
 
 
 def minimap_frame(track, px_per_cell: float = PX_PER_CELL, margin_cells: float = 0.0):
@@ -43,10 +44,11 @@ def road_mask(track, scene: Scene, px_per_cell: float = PX_PER_CELL) -> np.ndarr
 
 
 def draw_topdown(scene: Scene, px_per_cell: float = PX_PER_CELL, path_xy: np.ndarray | None = None,
-                 marks: list[tuple[float, float, tuple[int, int, int]]] | None = None,
+                 marks: list[tuple[float, float]] | None = None, marks_label: str = "mark",
                  signs: bool = True, legend: str | None = None) -> np.ndarray:
     """uint8 BGR picture of the scene from above (see the module docstring); path_xy (N,2) world
-    metres is drawn in red, marks as crosses. With `legend` (what the red path is, e.g. "driven
+    metres is drawn in red, marks (world metres) as yellow crosses, called `marks_label` in the
+    legend. With `legend` (what the red path is, e.g. "driven
     path"), a strip below the map says what each colour is, with a 10 m scale bar; the map
     itself stays VIA's minimap, pixel for pixel."""
     track = scene.track
@@ -86,21 +88,25 @@ def draw_topdown(scene: Scene, px_per_cell: float = PX_PER_CELL, path_xy: np.nda
             tx = int(c[0]) + r + 1 if int(c[0]) + r + 1 + tw < w else int(c[0]) - r - 1 - tw  # inside the picture
             cv2.putText(img, obj.kind, (max(0, tx), max(10, int(c[1]) - r)), cv2.FONT_HERSHEY_SIMPLEX,
                         0.35, (255, 255, 255), 1, cv2.LINE_AA)
-    for x, y, col in marks or []:
-        cv2.drawMarker(img, tuple(int(v) for v in to_px([[x, y]])[0]), col, cv2.MARKER_CROSS, 10, 2)
+    for x, y in marks or []:
+        cv2.drawMarker(img, tuple(int(v) for v in to_px([[x, y]])[0]), MARK_BGR, cv2.MARKER_TILTED_CROSS, 12, 2)
     if legend is None:
         return img
     kinds = {o.kind for o in scene.objects if o.kind in SIGN_NAMES} if signs else set()
     return np.vstack([img, _legend_strip(img.shape[1], k, legend if path_xy is not None else None, kinds,
-                                         MINIMAP_GROUND.get(track.background, MINIMAP_GROUND["none"]))])
+                                         MINIMAP_GROUND.get(track.background, MINIMAP_GROUND["none"]),
+                                         marks_label if marks else None)])
 
 
-def _legend_strip(width: int, px_per_m: float, path_label: str | None, sign_kinds: set[str], ground) -> np.ndarray:
-    """Rows of swatches and labels under a map: road, kerb, the path, its start, each sign
-    colour present, and a 10 m scale bar; wrapped to the map's width."""
+def _legend_strip(width: int, px_per_m: float, path_label: str | None, sign_kinds: set[str], ground,
+                  marks_label: str | None = None) -> np.ndarray:
+    """Rows of swatches and labels under a map: road, kerb, the path, its start, the marks,
+    each sign colour present, and a 10 m scale bar; wrapped to the map's width."""
     items = [("road", "box", MINIMAP_ROAD), ("kerb", "box", (245, 245, 245))]
     if path_label:
         items += [(path_label, "line", (0, 0, 255)), ("start", "dot", (0, 255, 0))]
+    if marks_label:
+        items.append((marks_label, "cross", MARK_BGR))
     groups = [("stop sign", {"stop"}), ("turn / straight sign", {"left", "right", "straight"}),
               ("no-turn sign", {"no_left", "no_right"})]
     items += [(name, "dot", SIGN_BGR[sorted(ks & sign_kinds)[0]]) for name, ks in groups if ks & sign_kinds]
@@ -130,6 +136,9 @@ def _legend_strip(width: int, px_per_m: float, path_label: str | None, sign_kind
             sw = 16
         elif kind == "dot":
             cv2.circle(strip, (x + 8, cy), 5, col, -1, cv2.LINE_AA)
+            sw = 16
+        elif kind == "cross":
+            cv2.drawMarker(strip, (x + 8, cy), col, cv2.MARKER_TILTED_CROSS, 12, 2)
             sw = 16
         elif kind == "text":
             sw = -6
