@@ -9,11 +9,12 @@ from signlane import lanes
 from signlane.behaviour import Behaviour, _junction_path, BehaviourParams
 from signlane.camera import via_camera
 from signlane.config import Config
-from signlane.junction import JunctionDetector, view_from_scan
-from signlane.odometry import Odometry
+from signlane.junction import JunctionDetector, JunctionView, Opening, view_from_scan
+from signlane.odometry import OdoPose, Odometry
 from signlane.sim.driver import Driver
 from signlane.sim.simulator import SimConfig, Simulator, run_inprocess
 from signlane.sim.vehicle import Vehicle
+from signlane.types import LaneEstimate
 from signlane.world.effects import Effects
 from signlane.world.procedural import generate_map
 from signlane.world.render import Renderer
@@ -163,6 +164,42 @@ def test_junction_paths_end_on_the_exit_lane():
     assert right[-1, 1] == pytest.approx(14.0 - 1.6) and right[-1, 0] > 10  # heading right, exit lane near side
     assert left[-1, 1] == pytest.approx(14.0 + 1.6) and left[-1, 0] < -10
     assert np.all(np.diff(_junction_path("straight", 14.0, 0.2, p)[:, 1]) > 0)
+
+
+def _approach(b: Behaviour, lane: LaneEstimate, near: float, cut: bool = False, frames: int = 4) -> str:
+    """Drive a Behaviour towards a lone right opening (the road straight on ending), the car
+    moving 0.5 m a frame with the opening `near` m ahead at the last; its last state."""
+    state = ""
+    for i in range(frames):
+        n = near + 0.5 * (frames - 1 - i)
+        view = JunctionView(None, Opening(n, n + 7.0, True, dead=False, cut=cut), False, straight_dead=True)
+        state = b.step(0.1 * i, OdoPose(0.0, 0.5 * i), 0.5 * i, 4.0, lane, view)[2]
+    return state
+
+
+def test_a_lone_opening_the_lane_bends_toward_is_a_bend_not_a_forced_turn():
+    # A right bend shows the junction detector an opening on its inner side and the road ending
+    # on its outer one: planned as a forced turn with a junction's tight radius, the car cut a
+    # 13 m bend and left the road. At a junction the lane runs straight up to it.
+    ys = np.arange(3.5, 12.0, 0.5)
+    straight = LaneEstimate("test", True, lane_width_m=3.2, path_m=np.column_stack([np.zeros_like(ys), ys]))
+    bending = LaneEstimate("test", True, curvature=1 / 13, lane_width_m=3.2,
+                           path_m=np.column_stack([ys ** 2 / 26.0, ys]))
+    assert _approach(Behaviour(), straight, 10.0) == "junction-right"
+    assert _approach(Behaviour(), bending, 10.0) != "junction-right"
+    mirrored = LaneEstimate("test", True, curvature=-1 / 13, lane_width_m=3.2,
+                            path_m=np.column_stack([-ys ** 2 / 26.0, ys]))
+    assert _approach(Behaviour(), mirrored, 10.0) == "junction-right"  # bending away: still the junction
+
+
+def test_an_opening_whose_near_end_is_outside_the_view_is_planned_once_in_view():
+    # VIA's camera shows a painted road's left strip from about 12 m on, so an opening there
+    # begins at the view's edge (12.1 m on one lap) and never came nearer than commit_near_m
+    ys = np.arange(3.5, 12.0, 0.5)
+    lane = LaneEstimate("test", True, lane_width_m=3.2, path_m=np.column_stack([np.zeros_like(ys), ys]))
+    assert _approach(Behaviour(), lane, 12.1) != "junction-right"
+    assert _approach(Behaviour(), lane, 12.1, cut=True) == "junction-right"
+    assert _approach(Behaviour(), lane, 16.0, cut=True) != "junction-right"  # not yet: too far to plan
 
 
 def _junction_centre_ahead(route: Route, leg) -> float:

@@ -385,3 +385,21 @@ def test_topdown_legend_is_a_strip_below_an_unchanged_map():
     strip = with_legend[h:].reshape(-1, 3)
     for colour in [(0, 0, 255), (0, 255, 0), SIGN_BGR["stop"], SIGN_BGR["no_left"]]:  # path, start, signs
         assert (np.abs(strip.astype(int) - colour).sum(axis=1) < 40).sum() > 10
+
+
+def test_where_the_car_left_the_road_is_in_the_report_and_crossed_on_the_picture():
+    from signlane.sim.score import Score
+    from signlane.world.topdown import MARK_BGR, draw_topdown, minimap_frame
+    score = Score(lane_width_m=4.0, offroad_m=2.0)
+    assert not score.frame(1.0, 1.9, 5.0, None, (3.0, 4.0))
+    assert score.frame(2.0, -2.2, 5.0, None, (10.0, -6.0))
+    assert score.offroad_log == [2.0] and score.offroad_xy == [(10.0, -6.0)]
+    track = bundled_map("via_town")
+    scene = build_scene(track)
+    img = draw_topdown(scene, marks=[(10.0, -6.0)], marks_label="off the road", legend="driven path")
+    x0, y1, k, w, h = minimap_frame(track)
+    u, v = int(round((10.0 - x0) * k)), int(round((y1 + 6.0) * k))
+    near = img[v - 6:v + 7, u - 6:u + 7].reshape(-1, 3).astype(int)
+    assert (np.abs(near - MARK_BGR).sum(axis=1) < 40).sum() > 8  # a yellow cross there
+    strip = img[h:].reshape(-1, 3).astype(int)
+    assert (np.abs(strip - MARK_BGR).sum(axis=1) < 40).sum() > 8  # and its legend entry
