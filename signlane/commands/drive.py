@@ -1,11 +1,11 @@
-"""`signlane drive`: the VIA-protocol drive server."""
+"""`signlane drive`: the VIA-protocol drive server; `signlane export-drive`: its recordings for other tools."""
 from __future__ import annotations
 
 import argparse
 from dataclasses import replace
 from pathlib import Path
 
-from signlane.commands.common import UserError, pixels_arg, positive
+from signlane.commands.common import UserError, pixels_arg, positive, size_arg
 from signlane.commands.common import add_config_args, load_config
 
 
@@ -80,4 +80,46 @@ def _run_drive(args) -> int:
         raise UserError(str(e)) from None
     except OSError as e:  # the port is taken, the address is not ours, ...
         raise UserError(f"cannot serve on {args.host}:{args.port}: {e.strerror or e}") from None
+    return 0
+
+
+def add_export_drive(sub) -> None:
+    p = sub.add_parser(
+        "export-drive", help="export a `drive --record` recording for other tools (a Donkey Car tub)",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Write a drive recording (`signlane drive --record DIR`: images/, drive.jsonl, manifest.json)\n"
+                    "in another tool's format. One format for now:\n\n"
+                    "  tub   Donkey Car's tub (donkeycar 4.x/5.x Tub, datastore v2), which `donkey train` reads:\n"
+                    "        images/<index>_cam_image_array_.jpg, catalog_<n>.catalog (one JSON record per line,\n"
+                    "        1000 a file) with catalog_<n>.catalog_manifest, and manifest.json. Each frame is\n"
+                    "        one record: cam/image_array (the JPEG as the simulator sent it, or resized with\n"
+                    "        --size), user/angle and user/throttle (the command the driver sent: steering in\n"
+                    "        [-1, 1], positive right; throttle in [0, 1]), user/mode \"user\" and car/speed\n"
+                    "        (m/s). Each connection of the recording is one session.\n\n"
+                    "The recording must be complete (manifest.json is written last, on a clean exit). The\n"
+                    "output is built beside --out and renamed into place, so it is never left half written.\n\n"
+                    "examples:\n"
+                    "  signlane export-drive runs/drive1 --out data/tub1\n"
+                    "  signlane export-drive runs/drive1 --out data/tub1 --size 160x120 --force   # donkeycar's default size")
+    p.add_argument("recording", type=Path, help="a recording folder written by `signlane drive --record`")
+    p.add_argument("--out", type=Path, required=True, help="output folder (new or empty, unless --force)")
+    p.add_argument("--format", choices=["tub"], default="tub", help="output format (default tub: Donkey Car's)")
+    p.add_argument("--size", type=size_arg, metavar="WxH",
+                   help="resize every image to WxH (e.g. 160x120, donkeycar's default camera size); "
+                        "default: the recorded JPEG bytes, not re-encoded")
+    p.add_argument("--force", action="store_true", help="replace a non-empty --out folder")
+    p.set_defaults(func=_run_export_drive)
+
+
+def _run_export_drive(args) -> int:
+    from signlane.sim.drive_record import RecordError
+    from signlane.tub import TubError, export_drive_tub
+    try:
+        done = export_drive_tub(args.recording, args.out, size=args.size, force=args.force)
+    except (RecordError, TubError) as e:
+        raise UserError(str(e)) from None
+    except OSError as e:
+        raise UserError(f"{args.out}: cannot write the tub ({e.strerror or e})") from None
+    print(f"wrote {done.frames} frames ({done.sessions} session(s), {done.catalogs} catalog file(s)) "
+          f"as a Donkey Car tub in {done.folder}")
     return 0

@@ -9,6 +9,7 @@ A recording is a folder a person can open and a learner can read:
   manifest.json     written last, on a clean shutdown: counts, the resolved config. As for every
                     signlane dataset, a folder is complete iff it holds manifest.json.
 Each image is written atomically before its JSONL line, so every line names a whole file.
+`read_recording` reads a complete one back (`signlane export-drive`, signlane/tub.py).
 """
 from __future__ import annotations
 
@@ -17,6 +18,7 @@ import logging
 import os
 import threading
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Callable
@@ -61,6 +63,49 @@ def frame_record(frame_id: str, client: int, tel: Telemetry, perception: Percept
             "signs": [{"label": s.label, "score": _round(s.score, 4), "box": [int(v) for v in s.box]}
                       for s in perception.signs],
             "timing_ms": {k: _round(v, 3) for k, v in perception.timing_ms.items()}}
+
+
+@dataclass(frozen=True)
+class Recording:
+    """A complete recording read back: its folder, manifest and frame objects in file order."""
+    folder: Path
+    manifest: dict
+    frames: tuple[dict, ...]
+
+    def image_path(self, frame: dict) -> Path:
+        return self.folder / frame["image"]
+
+
+def read_recording(folder: str | Path) -> Recording:
+    """Read a `--record` folder; a missing or incomplete one (no manifest.json yet: the server
+    writes it last) or a malformed line raises RecordError naming it."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise RecordError(f"{folder}: no such recording folder")
+    if not (folder / MANIFEST).is_file():
+        raise RecordError(f"{folder}: incomplete recording (no {MANIFEST}; the drive server writes it last, "
+                          "on a clean exit)")
+    try:
+        manifest = json.loads((folder / MANIFEST).read_text(encoding="utf-8"))
+        lines = (folder / FRAMES_FILE).read_text(encoding="utf-8").splitlines()
+    except FileNotFoundError:
+        raise RecordError(f"{folder}: not a drive recording (no {FRAMES_FILE})") from None
+    except (OSError, UnicodeDecodeError, ValueError) as e:
+        raise RecordError(f"{folder}: unreadable recording ({e})") from None
+    if not isinstance(manifest, dict) or manifest.get("generator", "signlane.drive") != "signlane.drive":
+        raise RecordError(f"{folder}: not a drive recording (its {MANIFEST} is not signlane.drive's)")
+    frames = []
+    for n, line in enumerate(lines, 1):
+        if not line.strip():
+            continue
+        try:
+            frame = json.loads(line)
+        except ValueError:
+            frame = None
+        if not isinstance(frame, dict) or not isinstance(frame.get("image"), str):
+            raise RecordError(f"{folder / FRAMES_FILE}:{n}: not a frame object")
+        frames.append(frame)
+    return Recording(folder, manifest, tuple(frames))
 
 
 class Recorder:
