@@ -3,13 +3,17 @@ frames become a pseudo-labelled lane dataset in the synthetic sets' layout, so t
 them (classical filtering produces labels; the network then learns to generalise them).
 
 The mask of a kept frame is the method's debug mask: for sliding-window the lane-paint pixels of
-the two ego boundaries it fitted (other lanes' paint stays unlabelled, so keep such sets a
+the two ego boundaries it fitted (other lanes' paint is labelled background, so keep such sets a
 minority beside synthetic ones); for segnet its whole marking mask (self-training). Frames are
 kept only when the method found the lane with `min_confidence` and painted pixels to learn from.
+The mask is class ids (signlane.label_masks): 1 on that paint, 0 below and beside it, and 255
+(ignore) on every row farther than the farthest paint it labelled: the method says nothing about
+what lies beyond the lines it followed (sliding-window looks 8 m ahead, 16 m when that shows no
+line), so paint there is unknown, not background.
 
-Layout of `out/`: images/<id>.jpg, masks/<id>.png (0/255), labels.jsonl (the lane contract;
-"pseudo": {"method", "confidence"} added), sheet.png (kept frames), rejected.png (a sample of the
-dropped ones), manifest.json (written last).
+Layout of `out/`: images/<id>.jpg, masks/<id>.png (ids 0/1/255), labels.jsonl (the lane contract;
+"pseudo": {"method", "confidence"} added), sheet.png (kept frames; ignored rows darkened),
+rejected.png (a sample of the dropped ones), manifest.json (written last; "mask_encoding").
 """
 from __future__ import annotations
 
@@ -25,7 +29,7 @@ from signlane_data.common import DatasetError, atomic_imwrite, atomic_write_text
 from signlane_data.lanes import JPEG_QUALITY, teacher_steering
 from signlane.draw import contact_sheet
 from signlane_data.preview import lane_overlay
-from signlane import lanes
+from signlane import label_masks, lanes
 from signlane.config import CameraConfig
 from signlane.media import MediaError, expand, iter_frames
 from signlane.types import LaneEstimate
@@ -66,9 +70,8 @@ def autolabel_lanes(paths: list[str], out: str | Path, method: str = "sliding-wi
                 seen += 1
                 h, w = frame.shape[:2]
                 est = lanes.get(method, camera=camera.camera(w, h))(frame)  # fresh state: frames stand alone
-                mask = est.debug_mask if est.debug_mask is not None else np.zeros((h, w), np.uint8)
-                mask = (mask > 0).astype(np.uint8) * 255
-                if not (est.found and est.confidence >= min_confidence and np.count_nonzero(mask) >= MIN_MASK_PX):
+                mask = pseudo_mask(est.debug_mask if est.debug_mask is not None else np.zeros((h, w), np.uint8))
+                if not (est.found and est.confidence >= min_confidence and np.count_nonzero(mask == 1) >= MIN_MASK_PX):
                     if len(rejected_tiles) < SHEET_MAX:
                         rejected_tiles.append(lane_overlay(frame, mask, {"left": _pts(est.left), "right": _pts(est.right)}))
                     continue
@@ -90,9 +93,21 @@ def autolabel_lanes(paths: list[str], out: str | Path, method: str = "sliding-wi
     counts = {"seen": seen, "kept": len(records)}
     config = {"method": method, "min_confidence": min_confidence, "every": every, "camera": camera.__dict__,
               "inputs": [str(p) for p in paths]}
-    write_manifest(out, "autolabel_lanes", 0, counts, config)
+    write_manifest(out, "autolabel_lanes", 0, counts, config, **{label_masks.MANIFEST_KEY: label_masks.IDS})
     log.info("%s: kept %d of %d frames", out, len(records), seen)  # `signlane autolabel` says when none
     return {"counts": counts, "failed": failed}
+
+
+def pseudo_mask(debug_mask: np.ndarray) -> np.ndarray:
+    """A method's debug mask uint8 (H, W), nonzero = the paint it labelled -> uint8 (H, W) ids:
+    1 on that paint, 255 on the rows above (farther than) its farthest pixel, 0 elsewhere (all 0
+    when it labelled nothing)."""
+    paint = debug_mask > 0
+    rows = np.flatnonzero(paint.any(axis=1))
+    beyond = np.zeros_like(paint)
+    if len(rows):
+        beyond[:rows[0]] = True
+    return label_masks.encode(paint, beyond)
 
 
 def _center(left, right) -> np.ndarray | None:

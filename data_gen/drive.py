@@ -1,7 +1,8 @@
 """A recorded drive: consecutive frames along one track, in the lane dataset layout, plus video.
 
-Layout of `out/`: images/<id>.jpg, masks/<id>.png, labels.jsonl (the lane contract plus "t",
-seconds since the first frame), drive.mp4 (H.264, `fps`, the JPEG frames in order), manifest.json.
+Layout of `out/`: images/<id>.jpg, masks/<id>.png (class ids as in `gen lanes`: 0 background,
+1 lane marking), labels.jsonl (the lane contract plus "t", seconds since the first frame),
+drive.mp4 (H.264, `fps`, the JPEG frames in order), manifest.json (with "mask_encoding").
 """
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ from pathlib import Path
 
 import cv2
 
+from signlane import label_masks
 from signlane.video_out import VideoOut
 from signlane.world.sampling import DriveSampler, SamplerConfig
 from signlane_data.common import prepare_output, run_indexed, sample_id, write_manifest
@@ -69,7 +71,8 @@ def generate_drive(out: str | Path, n: int, seed: int, width: int = 640, height:
     sampler = SamplerConfig(width=width, height=height, effects=effects, style=style)
     config = {"n": int(n), "seed": int(seed), "fps": float(fps), "speed_mps": float(speed_mps),
               "sampler": asdict(sampler), "jpeg_quality": JPEG_QUALITY,
-              "steering": {"k_offset": K_OFFSET, "k_heading": K_HEADING, "k_curv": K_CURV}, "video": "h264"}
+              "steering": {"k_offset": K_OFFSET, "k_heading": K_HEADING, "k_curv": K_CURV}, "video": "h264",
+              label_masks.MANIFEST_KEY: label_masks.IDS}
     manifest = prepare_output(out, "drive", config, resume)
     if manifest is None:
         for d in ("images", "masks"):
@@ -79,7 +82,7 @@ def generate_drive(out: str | Path, n: int, seed: int, width: int = 640, height:
         signs = merge_labels(out, n)
         write_video(out, n, fps)
         counts = {"frames": n, "sign_boxes": signs, "seconds": round(n / fps, 3)}
-        manifest = write_manifest(out, "drive", seed, counts, config)
+        manifest = write_manifest(out, "drive", seed, counts, config, **{label_masks.MANIFEST_KEY: label_masks.IDS})
         log.info("%s: wrote a %d-frame drive and %s", out, n, VIDEO)
     if preview:
         from signlane_data.preview import write_lane_preview

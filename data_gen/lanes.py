@@ -2,10 +2,15 @@
 
 Layout of `out/`:
     images/<id>.jpg      uint8 BGR frame, JPEG quality 95
-    masks/<id>.png       uint8 0/255 lane-marking mask, the frame's size
-    drivable/<id>.png    uint8 0/255 road-surface mask (only with drivable=True)
+    masks/<id>.png       uint8 class ids, the frame's size: 0 background, 1 lane marking
+    drivable/<id>.png    uint8 class ids: 0 off the road, 1 road surface (only with drivable=True)
     labels.jsonl         one JSON object per frame, in id order (see `frame_label`)
-    manifest.json        written last: the folder is complete iff it exists
+    manifest.json        written last: the folder is complete iff it exists; its
+                         "mask_encoding" is signlane.label_masks.IDS ("ids-0-1-255ignore")
+
+The masks hold no 255 (ignore): the renderer labels every pixel it draws. The sky holds no paint
+and is background (a model must learn not to find paint there); beyond the renderer's view range
+it draws neither paint nor road, in the image as in the masks.
 """
 from __future__ import annotations
 
@@ -20,6 +25,7 @@ import numpy as np
 
 from signlane_data.common import (PARTIAL, atomic_imwrite, atomic_write_json, atomic_write_text, file_intact,
                                   partial_dir, prepare_output, run_indexed, sample_id, write_manifest)
+from signlane import label_masks
 from signlane.world.render import Sample
 from signlane.world.sampling import HEAVY, FrameSampler, SamplerConfig
 from signlane.world.truth import GroundTruth
@@ -62,9 +68,9 @@ def write_frame(out: Path, sid: str, sample: Sample, drivable: bool, extra: dict
     truth = sample.truth
     h, w = sample.image.shape[:2]
     atomic_imwrite(out / "images" / f"{sid}.jpg", sample.image, [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
-    atomic_imwrite(out / "masks" / f"{sid}.png", truth.marking_mask)
+    atomic_imwrite(out / "masks" / f"{sid}.png", label_masks.encode(truth.marking_mask > 0))
     if drivable:
-        atomic_imwrite(out / "drivable" / f"{sid}.png", truth.drivable_mask)
+        atomic_imwrite(out / "drivable" / f"{sid}.png", label_masks.encode(truth.drivable_mask > 0))
     label = frame_label(sid, truth, w, h, drivable)
     label.update(extra or {})
     atomic_write_json(partial_dir(out, "labels") / f"{sid}.json", label, pretty=False)
@@ -115,7 +121,7 @@ class LaneJob:
 def lanes_config(n: int, seed: int, sampler: SamplerConfig, drivable: bool) -> dict:
     """The resolved options that determine the dataset's bytes (saved in the manifest)."""
     return {"n": int(n), "seed": int(seed), "sampler": asdict(sampler), "drivable": drivable,
-            "jpeg_quality": JPEG_QUALITY,
+            "jpeg_quality": JPEG_QUALITY, label_masks.MANIFEST_KEY: label_masks.IDS,
             "steering": {"k_offset": K_OFFSET, "k_heading": K_HEADING, "k_curv": K_CURV}}
 
 
@@ -143,7 +149,8 @@ def generate_lanes(out: str | Path, n: int, seed: int, width: int = 320, height:
         job = LaneJob(str(out), n, seed, sampler, drivable)
         run_indexed(n, job, workers, desc="lane frames", done_fn=job.done, chunk=sampler.frames_per_track)
         signs = merge_labels(out, n)
-        manifest = write_manifest(out, "lanes", seed, {"frames": n, "sign_boxes": signs}, config)
+        manifest = write_manifest(out, "lanes", seed, {"frames": n, "sign_boxes": signs}, config,
+                                  **{label_masks.MANIFEST_KEY: label_masks.IDS})
         log.info("%s: wrote %d lane frames", out, n)
     if preview:
         from signlane_data.preview import write_lane_preview

@@ -9,21 +9,25 @@ import cv2
 import numpy as np
 
 from signlane_data.common import atomic_imwrite
+from signlane.label_masks import IGNORE, dataset_encoding, read_mask
 from signlane.draw import SHEET_BG as BG, contact_sheet, put_label
 from signlane.world.art import SIGN_CLASSES
 
 MASK_BGR = np.array([255, 0, 255], np.float32)  # magenta: unlike any road, sky or sign colour
 MASK_ALPHA = 0.55
 LINE_BGR = {"left": (255, 160, 0), "right": (0, 140, 255), "center": (0, 255, 255)}
+IGNORE_DIM = 0.4  # ignored pixels keep this much of their brightness
 HEADER_H = 22
 
 
-def lane_overlay(image: np.ndarray, mask: np.ndarray, lane: dict | None = None) -> np.ndarray:
-    """`image` (uint8 (H, W, 3) BGR) with `mask` (uint8 (H, W) 0/255) tinted in semi-transparent
-    magenta and the label's left/right/center image polylines drawn; returns a new BGR image."""
+def lane_overlay(image: np.ndarray, ids: np.ndarray, lane: dict | None = None) -> np.ndarray:
+    """`image` (uint8 (H, W, 3) BGR) with its label mask `ids` (uint8 (H, W) 0/1/255,
+    signlane.label_masks) drawn: marking (1) tinted in semi-transparent magenta, ignored pixels
+    (255) darkened, and the label's left/right/center image polylines; returns a new BGR image."""
     out = image.astype(np.float32)
-    on = mask > 127
+    on = ids == 1
     out[on] = out[on] * (1 - MASK_ALPHA) + MASK_BGR * MASK_ALPHA
+    out[ids == IGNORE] *= IGNORE_DIM
     out = out.astype(np.uint8)
     thick = max(1, round(image.shape[1] / 200))  # stays visible when the sheet shrinks the frame
     for key, color in LINE_BGR.items():
@@ -51,10 +55,10 @@ def write_lane_preview(out_dir: str | Path, count: int = 32, cols: int = 8,
     polylines, each labelled with its id and teacher steering."""
     out_dir = Path(out_dir)
     tiles, names = [], []
+    encoding = dataset_encoding(out_dir)
     for row in read_jsonl(out_dir / "labels.jsonl", count, stride):
         img = cv2.imread(str(out_dir / row["image"]), cv2.IMREAD_COLOR)
-        mask = cv2.imread(str(out_dir / row["mask"]), cv2.IMREAD_GRAYSCALE)
-        tiles.append(lane_overlay(img, mask, row.get("lane")))
+        tiles.append(lane_overlay(img, read_mask(out_dir / row["mask"], encoding), row.get("lane")))
         names.append(f"{row['id']} steer {row.get('steering', 0.0):+.2f}")
     path = out_dir / "preview.png"
     atomic_imwrite(path, contact_sheet(tiles, cols, tile, names, gap=0))

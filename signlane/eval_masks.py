@@ -3,6 +3,9 @@
 A predicted pixel is correct when a true marking pixel lies within `tol` pixels of it (a disk),
 and a true pixel is found when a predicted one lies within `tol` of it (the usual boundary-style
 tolerance: a line one or two pixels off is still the line). Counts are summed over frames.
+Pixels without a label (a dataset's 255s, signlane.label_masks) count nowhere: a prediction
+there is neither right nor wrong. `iou` is the exact pixel IoU (no tolerance) over the labelled
+pixels.
 """
 from __future__ import annotations
 
@@ -14,6 +17,8 @@ import cv2
 import numpy as np
 from tqdm import tqdm
 
+from signlane.label_masks import IGNORE, dataset_encoding, read_mask
+
 
 @dataclass
 class MaskCounts:
@@ -22,11 +27,18 @@ class MaskCounts:
     tp_true: int = 0  # true pixels near a predicted one
     true: int = 0
     frames: int = 0
+    inter: int = 0  # exact pixels: predicted and true
+    union: int = 0  # predicted or true (labelled pixels only)
 
-    def add(self, pred: np.ndarray, true: np.ndarray, tol: int = 2) -> None:
-        """pred, true: uint8 (H, W), nonzero = marking."""
+    def add(self, pred: np.ndarray, true: np.ndarray, tol: int = 2, ignore: np.ndarray | None = None) -> None:
+        """pred, true: uint8 or bool (H, W), nonzero = marking; ignore: bool (H, W) pixels
+        without a label, or None (every pixel labelled)."""
         k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * tol + 1, 2 * tol + 1))
         p, t = pred > 0, true > 0
+        if ignore is not None:
+            p, t = p & ~ignore, t & ~ignore
+        self.inter += int(np.count_nonzero(p & t))
+        self.union += int(np.count_nonzero(p | t))
         self.tp_pred += int(np.count_nonzero(p & (cv2.dilate(t.astype(np.uint8), k) > 0)))
         self.tp_true += int(np.count_nonzero(t & (cv2.dilate(p.astype(np.uint8), k) > 0)))
         self.pred += int(np.count_nonzero(p))
@@ -39,24 +51,33 @@ class MaskCounts:
         f1 = 2 * precision * recall / max(precision + recall, 1e-12)
         return {"frames": self.frames, "precision": precision, "recall": recall, "f1": f1}
 
+    @property
+    def iou(self) -> float:
+        return self.inter / max(self.union, 1)
+
 
 def eval_masks(data: str | Path, model: str | Path | None = None, tol: int = 2, threads: int = 2,
                progress: bool = True) -> dict:
-    """The segmentation model's marking F1 within `tol` px on a lane dataset folder (labels.jsonl
-    with images/ and masks/, e.g. a fresh `signlane gen lanes --seed S`)."""
+    """The segmentation model's marking F1 within `tol` px, and exact IoU, on a lane dataset
+    folder (labels.jsonl with images/ and masks/, e.g. a fresh `signlane gen lanes --seed S`),
+    in either mask encoding (signlane.label_masks); pixels without a label count nowhere."""
     from signlane.lanes.seg_model import DEFAULT_MODEL, LaneSegModel, to_frame_mask
     seg = LaneSegModel(model or DEFAULT_MODEL, threads)
     root = Path(data)
     labels = root / "labels.jsonl"
     if not labels.is_file():
         raise ValueError(f"{root}: no labels.jsonl (not a lane dataset)")
+    encoding = dataset_encoding(root)
     counts = MaskCounts()
     recs = [json.loads(line) for line in labels.read_text().splitlines() if line.strip()]
     for rec in tqdm(recs, desc="eval masks", unit="frame", disable=not progress):
         img = cv2.imread(str(root / rec["image"]), cv2.IMREAD_COLOR)
-        true = cv2.imread(str(root / rec["mask"]), cv2.IMREAD_GRAYSCALE)
-        if img is None or true is None:
-            raise ValueError(f"{root / rec['image']}: unreadable image or mask")
+        if img is None:
+            raise ValueError(f"{root / rec['image']}: unreadable image")
+        true = read_mask(root / rec["mask"], encoding)
+        if true.shape != img.shape[:2]:
+            raise ValueError(f"{root / rec['mask']}: mask {true.shape} is not the image's size {img.shape[:2]}")
         prob = seg.probabilities([img])[0]
-        counts.add(to_frame_mask(prob, img.shape[1], img.shape[0]), true, tol)
-    return {"model": str(model or DEFAULT_MODEL), "data": str(root), "tolerance_px": tol, **counts.summary()}
+        counts.add(to_frame_mask(prob, img.shape[1], img.shape[0]), true == 1, tol, true == IGNORE)
+    return {"model": str(model or DEFAULT_MODEL), "data": str(root), "mask_encoding": encoding, "tolerance_px": tol,
+            **counts.summary(), "iou": counts.iou}

@@ -93,7 +93,7 @@ def test_lanes_labels_follow_the_contract(lanes_ref: Path) -> None:
         mask = cv2.imread(str(lanes_ref / r["mask"]), cv2.IMREAD_UNCHANGED)
         assert img.shape == (r["height"], r["width"], 3) == (120, 160, 3)
         assert mask.dtype == np.uint8 and mask.shape == img.shape[:2]
-        assert set(np.unique(mask)) <= {0, 255}
+        assert set(np.unique(mask)) <= {0, 1}  # class ids; the renderer leaves no pixel unlabelled (255)
         for key in ("left", "right", "center"):
             pts = np.asarray(r["lane"][key], float).reshape(-1, 2)
             assert np.all((pts >= 0) & (pts <= [r["width"] - 1, r["height"] - 1])), (r["id"], key)
@@ -107,6 +107,7 @@ def test_lanes_labels_follow_the_contract(lanes_ref: Path) -> None:
     manifest = json.loads((lanes_ref / "manifest.json").read_text())
     assert manifest["generator"] == "signlane.data_gen.lanes" and manifest["counts"]["frames"] == N_LANES
     assert manifest["seed"] == 7 and manifest["config"]["sampler"]["width"] == 160
+    assert manifest["mask_encoding"] == "ids-0-1-255ignore"
     assert not (lanes_ref / ".partial").exists()
 
 
@@ -246,6 +247,8 @@ def test_drive_frames_and_video(tmp_path: Path) -> None:
         frames += 1
     cap.release()
     assert frames == 10 and manifest["counts"]["frames"] == 10
+    assert manifest["mask_encoding"] == "ids-0-1-255ignore"
+    assert set(np.unique(cv2.imread(str(out / rows[0]["mask"]), cv2.IMREAD_UNCHANGED))) <= {0, 1}
     import av
     with av.open(str(out / "drive.mp4")) as box:  # H.264, which browsers play (OpenCV reads it too)
         assert box.streams.video[0].codec_context.name == "h264" and manifest["config"]["video"] == "h264"

@@ -60,9 +60,13 @@ def test_autolabel_keeps_confident_frames_in_the_lane_layout(trained):
     assert auto["counts"]["seen"] == 6 and len(recs) == auto["counts"]["kept"] == 6
     for r in recs:
         mask = cv2.imread(str(out / r["mask"]), cv2.IMREAD_UNCHANGED)
-        assert mask.shape == (240, 320) and set(np.unique(mask)) <= {0, 255} and mask.max() == 255
+        assert mask.shape == (240, 320) and set(np.unique(mask)) == {0, 1, 255}
+        # class ids: paint 1; the rows beyond the farthest paint the method labelled are 255 (unknown)
+        top = np.flatnonzero((mask == 1).any(axis=1))[0]
+        assert (mask[:top] == 255).all() and not (mask[top:] == 255).any()
         assert r["pseudo"]["confidence"] >= 0.7 and len(r["lane"]["left"]) > 1
-    assert (out / "sheet.png").exists() and (out / "manifest.json").exists()
+    assert (out / "sheet.png").exists()
+    assert json.loads((out / "manifest.json").read_text())["mask_encoding"] == "ids-0-1-255ignore"
 
 
 def test_an_autolabel_run_that_keeps_nothing_says_so_and_training_refuses_it(trained, tmp_path, capsys):

@@ -1,9 +1,12 @@
 """Lane-segmentation data for training: lane dataset folders (`signlane gen lanes`, `signlane
 autolabel lanes`, or any folder of images/ + masks/<stem>.png made by hand), mixed freely.
 
-Albumentations run jointly on the uint8 BGR frame and its mask at the frame's size; then the
-runtime's own `preprocess_frames` makes the input and `mask_target` the target, so training sees
-exactly what the car's model will see.
+Masks are read as class ids 0/1/255 (signlane.label_masks: the folder's manifest says
+`"mask_encoding"`; sets made before the key, and folders made by hand without a manifest, are
+binary 0/255 and give the same ids). Albumentations run jointly on the uint8 BGR frame and its
+ids at the frame's size (the border an affine or perspective warp pads in is 255: no label);
+then the runtime's own `preprocess_frames` makes the input and `mask_target` the target (0, 1,
+255 = ignored by the loss and the metrics), so training sees exactly what the car's model will see.
 """
 from __future__ import annotations
 
@@ -18,6 +21,7 @@ import numpy as np
 import torch
 from torch.utils.data import DataLoader, Dataset
 
+from signlane.label_masks import BINARY, IGNORE, dataset_encoding, read_mask
 from signlane.lanes.seg_model import DEFAULT_SPEC, mask_target, preprocess_frames
 from signlane.onnx_model import InputSpec
 from signlane.splits import VAL_FRACTION, split_of
@@ -31,21 +35,24 @@ class Item:
     image: Path
     mask: Path
     key: str  # stable name for the train/val split
+    encoding: str = BINARY  # of the mask file (signlane.label_masks), from its folder's manifest
 
 
 def list_frames(roots: list[Path]) -> list[Item]:
     """(image, mask) pairs of every folder: from labels.jsonl when present, else images/<stem>.*
     paired with masks/<stem>.png. A folder with neither, or with no frames (an autolabel run that
-    kept none), is an error: mixing in an empty set silently would train on less than asked."""
+    kept none), is an error: mixing in an empty set silently would train on less than asked.
+    Each item carries its folder's mask encoding (ValueError for one this version does not read)."""
     items: list[Item] = []
     for root in map(Path, roots):
         labels = root / "labels.jsonl"
+        enc = dataset_encoding(root)
         if labels.is_file():
             found = [json.loads(line) for line in labels.read_text().splitlines() if line.strip()]
-            own = [Item(root / rec["image"], root / rec["mask"], f"{root.name}/{rec['id']}") for rec in found]
+            own = [Item(root / rec["image"], root / rec["mask"], f"{root.name}/{rec['id']}", enc) for rec in found]
             why = "labels.jsonl lists no frames"
         elif (root / "images").is_dir() and (root / "masks").is_dir():
-            own = [Item(img, root / "masks" / f"{img.stem}.png", f"{root.name}/{img.stem}")
+            own = [Item(img, root / "masks" / f"{img.stem}.png", f"{root.name}/{img.stem}", enc)
                    for img in sorted((root / "images").iterdir())
                    if img.suffix.lower() in IMAGE_EXT and (root / "masks" / f"{img.stem}.png").is_file()]
             why = "no images/<stem> has a masks/<stem>.png"
@@ -59,12 +66,13 @@ def list_frames(roots: list[Path]) -> list[Item]:
 
 def train_augment(seed: int | None = None) -> A.Compose:
     """Other cameras (mirror, roll, zoom, shift, perspective), light, weather and sensors beyond
-    the renderer's, applied to frame and mask together (the mask by nearest neighbour); `seed`
-    makes the draws repeat (albumentations keeps its own generator)."""
+    the renderer's, applied to frame and mask ids together (the ids by nearest neighbour; what a
+    warp pads in is 255, no label); `seed` makes the draws repeat (albumentations keeps its own
+    generator)."""
     return A.Compose([
         A.HorizontalFlip(p=0.5),  # a mirrored road is still a road: paint stays paint
-        A.Affine(scale=(0.85, 1.15), translate_percent=(-0.06, 0.06), rotate=(-6, 6), p=0.6),
-        A.Perspective(scale=(0.02, 0.06), p=0.3),
+        A.Affine(scale=(0.85, 1.15), translate_percent=(-0.06, 0.06), rotate=(-6, 6), fill_mask=IGNORE, p=0.6),
+        A.Perspective(scale=(0.02, 0.06), fill_mask=IGNORE, p=0.3),
         A.RandomBrightnessContrast(brightness_limit=0.35, contrast_limit=0.4, p=0.8),
         A.RandomGamma(gamma_limit=(55, 170), p=0.4),
         A.HueSaturationValue(hue_shift_limit=15, sat_shift_limit=40, val_shift_limit=25, p=0.6),
@@ -77,10 +85,11 @@ def train_augment(seed: int | None = None) -> A.Compose:
 
 
 def read_pair(item: Item) -> tuple[np.ndarray, np.ndarray]:
+    """uint8 (H, W, 3) BGR frame and its uint8 (H, W) mask ids 0/1/255, whatever the encoding."""
     img = cv2.imread(str(item.image), cv2.IMREAD_COLOR)
-    mask = cv2.imread(str(item.mask), cv2.IMREAD_GRAYSCALE)
-    if img is None or mask is None:
-        raise ValueError(f"{item.image if img is None else item.mask}: unreadable")
+    if img is None:
+        raise ValueError(f"{item.image}: unreadable")
+    mask = read_mask(item.mask, item.encoding)
     if mask.shape != img.shape[:2]:
         raise ValueError(f"{item.mask}: mask {mask.shape} is not the image's size {img.shape[:2]}")
     return img, mask
@@ -99,7 +108,7 @@ class FrameDataset(Dataset):
             out = self.augment(image=img, mask=mask)
             img, mask = out["image"], out["mask"]
         x = preprocess_frames([img], self.spec)[0]
-        y = mask_target(mask, (self.spec.width, self.spec.height))
+        y = mask_target(mask == 1, (self.spec.width, self.spec.height), ignore=mask == IGNORE)
         return torch.from_numpy(x), torch.from_numpy(y.astype(np.int64))
 
 

@@ -1,6 +1,7 @@
 """LightningModule for lane segmentation: weighted cross-entropy + soft Dice (thin structures:
 paint is a few percent of the pixels, so plain CE would settle for 'all road'), marking IoU and
-F1, and a picture of sample predictions after every validation epoch."""
+F1, and a picture of sample predictions after every validation epoch. Target pixels of 255 have
+no label (signlane.label_masks.IGNORE): the losses and the metrics leave them out."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -11,15 +12,26 @@ import torch
 import torch.nn.functional as F
 from torchmetrics.classification import BinaryF1Score, BinaryJaccardIndex
 
+from signlane.label_masks import IGNORE
 from signlane_train.lane_net import LaneSegNet
 
 
 def dice_loss(logits: torch.Tensor, target: torch.Tensor, eps: float = 1.0) -> torch.Tensor:
-    """1 - soft Dice of the marking class over the batch."""
-    p = torch.softmax(logits, 1)[:, 1]
-    t = target.float()
+    """1 - soft Dice of the marking class over the batch's labelled pixels (target 0 or 1; 255
+    ignored). With no labelled pixel it is 0, without a gradient."""
+    p = torch.softmax(logits, 1)[:, 1] * (target != IGNORE)
+    t = (target == 1).float()
     inter = (p * t).sum()
     return 1.0 - (2 * inter + eps) / (p.sum() + t.sum() + eps)
+
+
+def weighted_ce(logits: torch.Tensor, target: torch.Tensor, weight: torch.Tensor) -> torch.Tensor:
+    """Class-weighted cross-entropy, the mean over the labelled pixels (what F.cross_entropy's
+    mean is, weights included); pixels of 255 are left out, and a batch with none labelled gives
+    0 (F.cross_entropy's mean would be 0/0)."""
+    total = F.cross_entropy(logits, target, weight=weight, ignore_index=IGNORE, reduction="sum")
+    labelled = weight[target.clamp(max=len(weight) - 1)] * (target != IGNORE)
+    return total / labelled.sum().clamp_min(1e-12)
 
 
 class LaneTask(L.LightningModule):
@@ -29,8 +41,8 @@ class LaneTask(L.LightningModule):
         self.save_hyperparameters()
         self.net = LaneSegNet(2, width)
         self.register_buffer("ce_weight", torch.tensor([1.0, pos_weight]), persistent=False)
-        self.val_iou, self.val_f1 = BinaryJaccardIndex(), BinaryF1Score()
-        self.train_iou = BinaryJaccardIndex()
+        self.val_iou, self.val_f1 = BinaryJaccardIndex(ignore_index=IGNORE), BinaryF1Score(ignore_index=IGNORE)
+        self.train_iou = BinaryJaccardIndex(ignore_index=IGNORE)
         self.samples_dir: Path | None = None  # set by the trainer script: sample_<epoch>.png go there
         self.sample_batch: tuple[torch.Tensor, torch.Tensor] | None = None
 
@@ -38,7 +50,7 @@ class LaneTask(L.LightningModule):
         return self.net(x)
 
     def _loss(self, logits: torch.Tensor, y: torch.Tensor) -> torch.Tensor:
-        return F.cross_entropy(logits, y, weight=self.ce_weight) + self.hparams.dice_weight * dice_loss(logits, y)
+        return weighted_ce(logits, y, self.ce_weight) + self.hparams.dice_weight * dice_loss(logits, y)
 
     def training_step(self, batch, _):
         x, y = batch
@@ -66,7 +78,8 @@ class LaneTask(L.LightningModule):
             self._write_samples()
 
     def _write_samples(self) -> None:
-        """samples/epoch_<k>.png: inputs with truth (green) and prediction (red; yellow = both)."""
+        """samples/epoch_<k>.png: inputs with truth (green) and prediction (red; yellow = both);
+        pixels without a label darkened."""
         from signlane.draw import contact_sheet, write_image
         from signlane.lanes.seg_model import DEFAULT_SPEC as spec
         x, y = self.sample_batch
@@ -76,8 +89,9 @@ class LaneTask(L.LightningModule):
         for xi, yi, pi in zip(x.numpy(), y.numpy(), pred):
             rgb = (xi.transpose(1, 2, 0) * np.array(spec.std) + np.array(spec.mean)) / spec.scale
             img = np.clip(rgb, 0, 255).astype(np.uint8)[:, :, ::-1].copy()
-            img[yi > 0] = (0.5 * img[yi > 0] + [0, 127, 0]).astype(np.uint8)
+            img[yi == 1] = (0.5 * img[yi == 1] + [0, 127, 0]).astype(np.uint8)
             img[pi > 0] = (0.5 * img[pi > 0] + [0, 0, 127]).astype(np.uint8)
+            img[yi == IGNORE] //= 3
             tiles.append(img)
         write_image(self.samples_dir / f"epoch_{self.current_epoch:03d}.png", contact_sheet(tiles, cols=4))
 

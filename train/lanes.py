@@ -11,6 +11,7 @@ import torch
 
 from signlane.eval_masks import MaskCounts
 from signlane.fileio import atomic_write_text
+from signlane.label_masks import IGNORE
 from signlane.lanes.seg_model import DEFAULT_SPEC, marking_probability, preprocess_frames, to_frame_mask
 from signlane.splits import VAL_FRACTION
 from signlane_train.common import ScaleOut, build_trainer, resume_path, save_run_config
@@ -67,7 +68,8 @@ def train_lanes(data: list[str | Path], out: str | Path, epochs: int = 15, batch
 
 def evaluate_checkpoint(ckpt: str, items, tol: int = 2) -> dict:
     """Marking precision/recall/F1 within tol px at each frame's own size, through the runtime's
-    pre- and post-processing (the numbers the exported model will give)."""
+    pre- and post-processing (the numbers the exported model will give); pixels without a label
+    (mask ids 255) count nowhere."""
     task = LaneTask.load_from_checkpoint(ckpt, map_location="cpu").eval()
     counts = MaskCounts()
     with torch.no_grad():
@@ -76,5 +78,5 @@ def evaluate_checkpoint(ckpt: str, items, tol: int = 2) -> dict:
             x = torch.from_numpy(preprocess_frames([p[0] for p in pairs], DEFAULT_SPEC))
             prob = marking_probability(task(x).numpy())
             for (img, mask), pr in zip(pairs, prob):
-                counts.add(to_frame_mask(pr, img.shape[1], img.shape[0]), mask, tol)
+                counts.add(to_frame_mask(pr, img.shape[1], img.shape[0]), mask == 1, tol, mask == IGNORE)
     return {f"val_{k}_at_{tol}px" if k != "frames" else "val_frames": v for k, v in counts.summary().items()}

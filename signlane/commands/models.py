@@ -53,7 +53,9 @@ def _add_train_lanes(kinds) -> None:
     lanes = kinds.add_parser("lanes", help="the lane-marking segmentation net on lane datasets",
                              description="Train the lane-marking segmentation net (for `--lanes segnet`) on one or "
                                          "more lane datasets: `signlane gen lanes` output, `signlane autolabel lanes` "
-                                         "output, or folders of images/ + masks/<stem>.png, mixed freely. Writes "
+                                         "output, or folders of images/ + masks/<stem>.png, mixed freely. Masks are "
+                                         "read as the manifest's mask_encoding says (class ids 0/1 with 255 = "
+                                         "ignore, left out of loss and metrics), binary 0/255 without one. Writes "
                                          "samples/epoch_<k>.png (truth green, prediction red) every epoch.")
     lanes.add_argument("data", nargs="+", type=Path, help="lane dataset folders")
     lanes.add_argument("--out", type=Path, required=True, help="run folder")
@@ -236,7 +238,9 @@ def _add_autolabel_lanes(kinds) -> None:
                              description="Run a lane method on your images/videos and keep only the frames it is "
                                          "confident about, as a lane dataset (images/, masks/, labels.jsonl, "
                                          "manifest.json) that `signlane train lanes` can mix with synthetic sets; "
-                                         "sheet.png shows the kept frames, rejected.png some dropped ones.")
+                                         "sheet.png shows the kept frames, rejected.png some dropped ones. Masks are "
+                                         "class ids: 1 on the paint the method followed, 0 around it, 255 (ignore) "
+                                         "on the rows beyond the farthest paint it labelled.")
     lanes.add_argument("paths", nargs="+", help="images, videos or folders")
     lanes.add_argument("--out", type=Path, required=True, help="output folder (new or empty)")
     lanes.add_argument("--method", default="sliding-window", help="lane method (default sliding-window)")

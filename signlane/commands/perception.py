@@ -67,7 +67,8 @@ def add_eval(sub) -> None:
     masks = kinds.add_parser("masks", help="lane-marking F1 of the segmentation model on a lane dataset",
                              description="Precision, recall and F1 of segnet's lane-marking mask against a lane "
                                          "dataset's masks (make a fresh one with `signlane gen lanes --seed S`), "
-                                         "with a pixel tolerance, at each frame's size.")
+                                         "with a pixel tolerance, at each frame's size, and the exact pixel IoU; "
+                                         "pixels a mask marks 255 (no label) count nowhere.")
     masks.add_argument("data", type=Path, help="lane dataset folder (labels.jsonl, images/, masks/)")
     masks.add_argument("--model", type=Path, help="ONNX model (default: the shipped signlane/models/lanes.onnx)")
     masks.add_argument("--tol", type=int, default=2, help="tolerance in pixels (default 2)")

@@ -30,7 +30,8 @@ def add_gen(sub) -> None:
                              "lanes and signs, via for drive")
     lanes = kinds.add_parser("lanes", parents=[common], help="frames + lane-marking masks + labels.jsonl",
                              description="Frames with exact lane-marking masks and labels (images/, masks/, "
-                                         "labels.jsonl, manifest.json).")
+                                         "labels.jsonl, manifest.json). Masks are class ids: 0 background, "
+                                         "1 lane marking (255 would be ignore; the renderer leaves none).")
     lanes.add_argument("--size", type=size_arg, default=(320, 240), help="frame size WxH (default 320x240)")
     lanes.add_argument("--workers", type=positive, default=1, help="worker processes (default 1)")
     lanes.add_argument("--effects", choices=["clean", "normal", "hard", "heavy", "mixed", "wild"], default="mixed",
@@ -39,7 +40,8 @@ def add_gen(sub) -> None:
     lanes.add_argument("--preset", choices=["default", "heavy"], default="default",
                        help="heavy: wild effects, strong wear and shadows, wider camera spread, a third of the "
                             "frames 16:9 (for lane-segmentation training; overrides --effects)")
-    lanes.add_argument("--drivable", action="store_true", help="also write drivable/<id>.png (road surface, 0/255)")
+    lanes.add_argument("--drivable", action="store_true",
+                       help="also write drivable/<id>.png (class ids: 1 road surface, 0 not)")
     lanes.add_argument("--no-randomise", dest="randomise", action="store_false",
                        help="default road style, looks and camera instead of randomised ones")
     signs = kinds.add_parser("signs", parents=[common], help="labelled sign crops (ImageFolder)",

@@ -13,6 +13,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from signlane.label_masks import IGNORE
 from signlane.onnx_model import InputSpec, ModelError, OnnxModel, prepare_input
 
 TASK = "lane-segmentation"
@@ -33,12 +34,19 @@ def marking_probability(logits: np.ndarray) -> np.ndarray:
     return (1.0 / (1.0 + np.exp(-d))).astype(np.float32)
 
 
-def mask_target(mask: np.ndarray, size: tuple[int, int], min_cover: float = 0.25) -> np.ndarray:
-    """A label mask uint8 (H, W) 0/255 at the frame's size -> uint8 (h, w) 0/1 at the model's
-    output size (w, h): a cell is marking when paint covers min_cover of it, so lines thinner
-    than a cell survive the downscale."""
+def mask_target(mask: np.ndarray, size: tuple[int, int], min_cover: float = 0.25,
+                ignore: np.ndarray | None = None) -> np.ndarray:
+    """A label mask uint8 or bool (H, W) at the frame's size, nonzero = marking, and optionally bool
+    (H, W) pixels without a label (a dataset's 255s: signlane.label_masks) -> uint8 (h, w) target
+    at the model's output size (w, h): 1 where paint covers min_cover of a cell, so lines thinner
+    than a cell survive the downscale; 0 where it would not even if every unlabelled pixel of the
+    cell were paint; 255 (ignore) in between. Without unlabelled pixels there is no 255."""
     cover = cv2.resize((mask > 0).astype(np.float32), size, interpolation=cv2.INTER_AREA)
-    return (cover >= min_cover).astype(np.uint8)
+    target = (cover >= min_cover).astype(np.uint8)
+    if ignore is not None and ignore.any():
+        unknown = cv2.resize(ignore.astype(np.float32), size, interpolation=cv2.INTER_AREA)
+        target[(target == 0) & (cover + unknown >= min_cover)] = IGNORE
+    return target
 
 
 def to_frame_mask(prob: np.ndarray, width: int, height: int, threshold: float = MASK_THRESHOLD) -> np.ndarray:
