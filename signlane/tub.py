@@ -24,11 +24,11 @@ from pathlib import Path
 from typing import IO, Sequence
 
 import cv2
-import numpy as np
 from tqdm import tqdm
 
-from signlane import __version__
+from signlane import __version__, imagecheck
 from signlane.fileio import atomic_folder
+from signlane.sim.protocol import encode_jpeg
 from signlane.sim.drive_record import RecordError, Recording, read_recording
 
 DEFAULT_MAX_LEN = 1000  # records per catalog file, as donkeycar's Tub
@@ -227,16 +227,11 @@ class TubExport:
 
 
 def resize_jpeg(jpeg: bytes, size: tuple[int, int], quality: int = JPEG_QUALITY) -> bytes:
-    """JPEG bytes decoded, resized to `size` (W, H; area interpolation) and encoded again.
-    Raises ValueError when the bytes are not a decodable image."""
-    img = cv2.imdecode(np.frombuffer(jpeg, np.uint8), cv2.IMREAD_COLOR)  # uint8 (H, W, 3) BGR
-    if img is None:
-        raise ValueError("not a decodable JPEG")
-    ok, buf = cv2.imencode(".jpg", cv2.resize(img, size, interpolation=cv2.INTER_AREA),
-                           [cv2.IMWRITE_JPEG_QUALITY, quality])
-    if not ok:
-        raise ValueError("OpenCV could not encode it")
-    return buf.tobytes()
+    """JPEG bytes decoded (checked, as every image signlane reads), resized to `size` (W, H; area
+    interpolation) and encoded again. Raises ValueError (ImageCheckError) when the bytes are
+    not a sound image."""
+    img = imagecheck.decode(jpeg)
+    return encode_jpeg(cv2.resize(img, size, interpolation=cv2.INTER_AREA), quality)
 
 
 def _check_out(out: Path, recording: Path, force: bool) -> None:
@@ -322,7 +317,7 @@ def _frame_values(rec: Recording, frame: dict, size: tuple[int, int] | None, has
         if rec.folder.resolve() not in path.resolve().parents:
             raise ValueError("outside the recording folder")
         jpeg = path.read_bytes()
-        if jpeg[:2] != b"\xff\xd8":
+        if imagecheck.image_format(jpeg) != "jpeg":
             raise ValueError("not a JPEG")
         if size is not None:
             jpeg = resize_jpeg(jpeg, size)

@@ -393,7 +393,7 @@ def test_where_the_car_left_the_road_is_in_the_report_and_crossed_on_the_picture
     score = Score(lane_width_m=4.0, offroad_m=2.0)
     assert not score.frame(1.0, 1.9, 5.0, None, (3.0, 4.0))
     assert score.frame(2.0, -2.2, 5.0, None, (10.0, -6.0))
-    assert score.offroad_log == [2.0] and score.offroad_xy == [(10.0, -6.0)]
+    assert score.offroad == [(2.0, 10.0, -6.0)]
     track = bundled_map("via_town")
     scene = build_scene(track)
     img = draw_topdown(scene, marks=[(10.0, -6.0)], marks_label="off the road", legend="driven path")

@@ -19,11 +19,10 @@ class Score:
         self.speeds: list[float] = []
         self.latency: list[float] = []
         self.offroad_events = 0
-        self.offroad_log: list[float] = []
-        self.offroad_xy: list[tuple[float, float]] = []  # where: drawn on the path picture
+        self.offroad: list[tuple[float, float, float]] = []  # (t, x, y) of each: when, and where on the map
 
     def frame(self, t: float, cte_m: float, speed: float, latency_ms: float | None,
-              xy: tuple[float, float] = (0.0, 0.0)) -> bool:
+              xy: tuple[float, float]) -> bool:
         """Record one frame (the car at world metres `xy`); True when the car has just gone off
         its lane (an intervention)."""
         self.cte.append(abs(cte_m) / self.lane_w)
@@ -32,8 +31,7 @@ class Score:
             self.latency.append(latency_ms)
         if abs(cte_m) > self.offroad_m:
             self.offroad_events += 1
-            self.offroad_log.append(round(t, 2))
-            self.offroad_xy.append((round(float(xy[0]), 2), round(float(xy[1]), 2)))
+            self.offroad.append((round(t, 2), round(float(xy[0]), 2), round(float(xy[1]), 2)))
             return True
         return False
 
@@ -52,8 +50,8 @@ class Score:
                 "fps": 0.0, "latency_ms": {"median": round(float(np.median(lat)), 2),
                                            "p99": round(float(np.percentile(lat, 99)), 2)},
                 "dead_ends_taken": sum(bool(j.get("dead_end")) for j in course.log.junctions),
-                "junctions": course.log.junctions, "stop_log": stops, "offroad_at_s": self.offroad_log,
-                "offroad_xy_m": [list(p) for p in self.offroad_xy]}
+                "junctions": course.log.junctions, "stop_log": stops, "offroad_at_s": [t for t, _, _ in self.offroad],
+                "offroad_xy_m": [[x, y] for _, x, y in self.offroad]}
 
 
 def format_report(rep: dict) -> str:
