@@ -1,0 +1,132 @@
+"""Perception built once, for every user: the configured lane method on a working copy of each
+frame, junction openings from the same scan, and the sign stage on the full frame.
+
+`signlane infer` (signlane/pipeline.py) and the closed-loop drive stack (signlane/drive/stack.py:
+`drive`, `sim --with-driver`, `run`) both build theirs here, so a method, a model or a camera
+setting reaches all of them the same way. Camera-dependent parts are built for the stream's
+frame size on its first frame (and again if the size changes).
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import cv2
+import numpy as np
+
+from signlane import lanes
+from signlane.config import Config
+from signlane.drive.signs import SignWorker, stage_failure
+from signlane.junction import JunctionDetector, view_from_scan, with_road_end
+from signlane.lanes.auto import road_state
+from signlane.types import LaneEstimate, SignDetection
+
+
+class PerceptionStack:
+    """lanes_width: lanes and junctions run on frames scaled to this width (0 = as they come).
+    sync_signs False runs the sign stage in a worker thread on the newest frame (real time)."""
+
+    def __init__(self, config: Config, lanes_width: int = 0, sync_signs: bool = True, junctions: bool = True):
+        self.config = config
+        self.lanes_width = lanes_width
+        self.with_junctions = junctions
+        cfg_lanes = config.lanes
+        lanes.params_for(cfg_lanes.method, cfg_lanes.variant, **cfg_lanes.overrides())  # fail early on a bad name
+        self.signs = None
+        self._worker = None
+        if config.signs.enabled:
+            from signlane.signs.stage import SignStage
+            self.signs = SignStage(config.signs)
+            if not sync_signs:
+                self._worker = SignWorker(self.signs)
+        self._size: tuple[int, int] | None = None
+        self.lane = self.junctions = self.camera = self.small_camera = None
+        self.scaled = (0, 0)
+
+    def setup(self, width: int, height: int) -> None:
+        if self._size == (width, height):
+            return
+        cfg = self.config
+        lw = self.lanes_width
+        scale = lw / width if 0 < lw < width else 1.0
+        self.scaled = (round(width * scale), round(height * scale))
+        self.camera = cfg.camera.camera(width, height)
+        self.small_camera = cfg.camera.camera(*self.scaled)
+        self.lane = lanes.get(cfg.lanes.method, camera=self.small_camera, variant=cfg.lanes.variant,
+                              **cfg.lanes.overrides())
+        self.junctions = JunctionDetector(self.small_camera) if self.with_junctions else None
+        self._size = (width, height)
+
+    @property
+    def confirmed(self) -> list[SignDetection]:
+        """Signs confirmed over the last frames (N of M)."""
+        return list(self.signs.confirmed) if self.signs is not None else []
+
+    def lanes_on(self, image: np.ndarray) -> tuple[LaneEstimate, np.ndarray]:
+        """The lane in the working frame's pixels, and that working frame (uint8 BGR)."""
+        h, w = image.shape[:2]
+        self.setup(w, h)
+        small = image if self.scaled == (w, h) else cv2.resize(image, self.scaled, interpolation=cv2.INTER_AREA)
+        return self.lane(small), small
+
+    def junction_view(self, small: np.ndarray, lane: LaneEstimate):
+        """(junction view, two_lane): on a kerbed carriageway the openings are where its edges
+        jump away; on painted lanes where the edge line is missing, a road ending ahead from the
+        scan."""
+        road = road_state(self.lane.state)
+        two_lane = road is None or road.two_lane
+        if not two_lane:
+            view = view_from_scan(road.scan)
+        else:
+            view = self.junctions.detect(small, lane.lane_width_m or None)
+            if road is not None and road.scan is not None:
+                view = with_road_end(view, road.scan)
+        return view, two_lane
+
+    def signs_now(self, image: np.ndarray, pose=None) -> tuple[tuple[SignDetection, ...], list, object]:
+        """(found, confirmed, the pose they were seen at): in step with the frame, or the worker's
+        newest result (found empty and pose None when it has none yet). SignStageError on failure."""
+        if self.signs is None:
+            return (), [], None
+        if self._worker is None:
+            try:
+                found, confirmed = self.signs.step(image)
+            except Exception as e:
+                raise stage_failure(e) from e
+            return tuple(found), list(confirmed), pose
+        self._worker.submit(image, pose)
+        found, confirmed, at = self._worker.latest()
+        return tuple(found), confirmed, at
+
+    @property
+    def sign_ms(self) -> dict[str, float]:
+        """The sign stage's parts of the last frame, when it runs in step (in the worker they are
+        another thread's)."""
+        if self.signs is None or self._worker is not None:
+            return {}
+        return {f"signs_{k}": v for k, v in self.signs.last_ms.items()}
+
+    def forget_tracks(self) -> None:
+        """The lane tracker's last fit no longer applies (e.g. after a junction)."""
+        keep = getattr(self.lane.state, "forget_tracks", None)
+        self.lane.state = keep() if keep else None
+
+    def in_frame_pixels(self, lane: LaneEstimate, width: int) -> LaneEstimate:
+        """The lane's boundaries in the frame's own pixels (the working frame may be smaller)."""
+        if self.scaled[0] == width:
+            return lane
+        k = width / self.scaled[0]
+        return replace(lane, left=None if lane.left is None else lane.left * k,
+                       right=None if lane.right is None else lane.right * k)
+
+    def reset(self) -> None:
+        if self._size is not None:
+            self.lane.reset()
+            if self.junctions is not None:
+                self.junctions.reset()
+        if self.signs is not None:
+            self.signs.reset()
+
+    def close(self) -> None:
+        if self._worker is not None:
+            self._worker.close()
+            self._worker = None

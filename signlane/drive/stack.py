@@ -1,0 +1,105 @@
+"""The closed-loop drive stack: one camera frame plus what the car reports (speed, wheel angle,
+time) in, Perception and Command out. No sockets, no files: the drive server, the local
+simulator and `signlane run` (camera, video) each feed it frames from their own source.
+
+Per frame: odometry from speed and wheel angle; lanes and junction openings on a scaled frame;
+signs (proposals, classifier, N-of-M confirmation) on the full frame, placed in the odometry
+frame from their box size; then the behaviour state machine (signlane/behaviour.py). One stack
+per stream (connection, camera): it carries tracking, confirmation, odometry and the state
+machine.
+
+With `sync_signs=False` the sign stage runs in a worker thread beside the lane path on the
+newest frame it can take, and steering uses its latest result, so classification never stalls
+steering (real time). Synchronous signs make lockstep runs deterministic.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from signlane.behaviour import Behaviour, BehaviourParams
+from signlane.config import Config
+from signlane.drive.perception import PerceptionStack
+from signlane.drive.signs import sign_positions
+from signlane.odometry import Odometry, OdoPose
+from signlane.types import Command, Frame, Perception, SignDetection
+
+
+class DriveStack:
+    def __init__(self, config: Config | None = None, sync_signs: bool = True):
+        self.config = config or Config()
+        dc = self.config.drive
+        self.sync_signs = sync_signs
+        self.perception = PerceptionStack(self.config, dc.lanes_width, sync_signs)
+        self.behaviour = Behaviour(BehaviourParams(
+            max_speed=dc.max_speed, cruise_speed=dc.cruise_speed, approach_speed=dc.approach_speed,
+            stop_hold_s=dc.stop_hold_s, coast_decel=dc.coast_decel, wheelbase_m=dc.wheelbase_m,
+            camera_forward_m=self.config.camera.forward_m))
+        self.odometry = Odometry(dc.wheelbase_m)
+        self.signs = self.perception.signs
+        self.seq = 0
+
+    @property
+    def camera(self):
+        """The full frame's camera (None before the first frame)."""
+        return self.perception.camera
+
+    def drive(self, image: np.ndarray, speed_mps: float, wheel_deg: float, t: float) -> tuple[Perception, Command]:
+        """One frame: image uint8 (H, W, 3) BGR; speed m/s; applied wheel angle degrees (+ right);
+        t seconds on any steady clock (simulated or monotonic)."""
+        ps = self.perception
+        h, w = image.shape[:2]
+        timing: dict[str, float] = {}
+        t0 = time.perf_counter()
+        # the camera's ground point: what the camera measures (lanes, junctions, signs) is planned from it
+        pose = self.odometry.step(t, speed_mps, wheel_deg).ahead(self.config.camera.forward_m)
+        lane, small = ps.lanes_on(image)
+        t1 = time.perf_counter()
+        timing["lanes"] = (t1 - t0) * 1e3
+        view, two_lane = ps.junction_view(small, lane)
+        t2 = time.perf_counter()
+        timing["junction"] = (t2 - t1) * 1e3
+        signs = self._signs(image, pose)
+        t3 = time.perf_counter()
+        timing["signs"] = (t3 - t2) * 1e3
+        timing.update(ps.sign_ms)
+        was = self.behaviour.path is not None
+        steering, throttle, state = self.behaviour.step(t, pose, self.odometry.distance_m, speed_mps,
+                                                        lane, view, two_lane)
+        if was and self.behaviour.path is None:  # the tracker's last fit is from before the junction
+            ps.forget_tracks()
+        timing["control"] = (time.perf_counter() - t3) * 1e3
+        lane = ps.in_frame_pixels(lane, w)  # report the lane in the frame's own pixels
+        frame = Frame(image, t, self.seq)
+        self.seq += 1
+        return Perception(frame, lane, signs, timing), Command(steering, throttle, state)
+
+    def _signs(self, image: np.ndarray, pose: OdoPose) -> tuple[SignDetection, ...]:
+        found, confirmed, at = self.perception.signs_now(image, pose)
+        if at is None:
+            return ()
+        dc = self.config.drive
+        placed = sign_positions(confirmed, found, self.perception.camera, at, dc.sign_size_m, dc.sign_min_aspect,
+                                dc.sign_max_lateral_m)
+        self.behaviour.observe_signs(placed)
+        return found
+
+    @property
+    def confirmed(self) -> list[SignDetection]:
+        return self.perception.confirmed
+
+    def reset(self) -> None:
+        self.perception.reset()
+        self.behaviour.reset()
+        self.odometry.reset()
+        self.seq = 0
+
+    def close(self) -> None:
+        self.perception.close()
+
+    def __enter__(self) -> "DriveStack":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
