@@ -13,6 +13,7 @@ from signlane.commands.common import UserError
 from signlane.commands.drive import add_drive, add_export_drive
 from signlane.commands.models import add_autolabel, add_classify, add_export, add_ship, add_train
 from signlane.commands.perception import add_eval, add_infer
+from signlane.commands.run import add_run
 from signlane.commands.settings import add_config
 from signlane.commands.sim import add_sim
 from signlane.commands.world import add_demo, add_gen, add_map
@@ -29,7 +30,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-v", "--verbose", action="store_true", help="debug logging")
     sub = p.add_subparsers(dest="command", required=True, metavar="<command>")
     for add in (add_infer, add_eval, add_gen, add_train, add_export, add_ship, add_classify, add_autolabel, add_demo,
-                add_map, add_drive, add_export_drive, add_sim, add_config):
+                add_map, add_drive, add_export_drive, add_sim, add_run, add_config):
         add(sub)
     return p
 

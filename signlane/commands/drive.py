@@ -24,6 +24,10 @@ def add_drive(sub) -> None:
                     "never acts on a backlog. A bad frame gets one log line and a safe answer (coast, wheels\n"
                     "straight); the server keeps serving. Rates and latencies are logged every --log-every\n"
                     "seconds.\n\n"
+                    "The same host and port serve a live monitor page (http://127.0.0.1:4567/, also VIA's\n"
+                    "/web/index.html): the camera with lanes, sign boxes and state, other topics (lane mask,\n"
+                    "bird's-eye, colour masks, edges), plots of steering, speed and latency. It only reads:\n"
+                    "--allow-control lets a viewer save frames; --no-web turns it off.\n\n"
                     "examples:\n"
                     "  signlane drive                                # then start the simulator\n"
                     "  signlane drive --lanes canny-scan --no-signs\n"
@@ -31,6 +35,11 @@ def add_drive(sub) -> None:
     p.add_argument("--host", default="127.0.0.1",
                    help="address to listen on (default 127.0.0.1; 0.0.0.0 exposes the car to the network)")
     p.add_argument("--port", type=int, default=4567, help="port (default 4567, the simulator's; 0 = any free)")
+    p.add_argument("--no-web", action="store_true",
+                   help="no monitor page (default: http://HOST:PORT/ shows what the driver sees, live)")
+    p.add_argument("--allow-control", action="store_true",
+                   help="let monitor viewers save the current frame and its state (monitor_snapshots/); without "
+                        "it no page or endpoint writes anything or changes a setting")
     p.add_argument("--lanes", metavar="METHOD",
                    help="lane method: auto (default: road-edges on a kerbed carriageway such as VIA's, "
                         "sliding-window on painted lanes), road-edges, sliding-window, canny-scan, color-hough, "
@@ -73,7 +82,10 @@ def _run_drive(args) -> int:
         raise UserError(f"--log-every must be > 0, not {args.log_every}")
     options = ServerOptions(host=args.host, port=args.port, max_bytes=args.max_bytes, max_pixels=args.max_pixels,
                             record=args.record, show_every=args.show_every or 0, show_dir=args.show_dir,
-                            sync_signs=args.sync_signs, log_every_s=args.log_every)
+                            sync_signs=args.sync_signs, log_every_s=args.log_every, web=not args.no_web,
+                            allow_control=args.allow_control)
+    from signlane.drive.web import warn_if_exposed
+    warn_if_exposed(args.host, "the drive server" + ("" if args.no_web else " and its monitor"))
     try:
         run_server(cfg, options)
     except (RecordError, ModelError, SignStageError, ValueError) as e:

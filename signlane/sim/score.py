@@ -62,4 +62,9 @@ def format_report(rep: dict) -> str:
             ("distance m / time s", f"{rep['distance_m']:.0f} / {rep['time_s']:.1f}"),
             ("mean speed m/s", f"{rep['mean_speed']:.2f}"), ("frames/s (wall)", f"{rep['fps']:.1f}"),
             ("server latency median / p99 ms", f"{rep['latency_ms']['median']:.1f} / {rep['latency_ms']['p99']:.1f}")]
+    split = rep.get("server_latency_ms") or {}
+    for k in ("decode", "perceive", "answer"):  # the drive server's own split (sim --with-driver)
+        if f"{k}_ms_median" in split:
+            rows.append((f"  in the server: {k} median / p99 ms",
+                         f"{split[f'{k}_ms_median']:.1f} / {split[f'{k}_ms_p99']:.1f}"))
     return pairs(rows)

@@ -60,6 +60,8 @@ class ServerOptions:
     show_dir: Path | None = None  # where annotated frames go (default: drive_frames/)
     sync_signs: bool = False  # True: signs in step with every frame (deterministic, lockstep)
     log_every_s: float = 10.0  # rate/latency report period
+    web: bool = True  # the live monitor page on the same host and port (signlane/drive/web.py)
+    allow_control: bool = False  # let monitor viewers save frames (nothing writes or changes anything without it)
 
 
 @dataclass
@@ -91,8 +93,17 @@ class _Server:
         self.disk = DiskWriter() if (self.recorder or self.shower) else None
         self.clients = 0
         self.next_id = 1
+        self.monitor = self.web = None
+        if options.web:
+            from signlane.drive.monitor import Monitor
+            from signlane.drive.web import WebMonitor
+            self.monitor = Monitor(config.camera)
+            self.web = WebMonitor(self.monitor, options.allow_control)
 
     async def handle(self, ws: ServerConnection) -> None:
+        if self.web is not None and self.web.is_viewer(ws.request.path):
+            await self.web.viewer(ws)  # a monitor page, not a car
+            return
         cid, self.next_id = self.next_id, self.next_id + 1
         self.clients += 1
         try:
@@ -111,6 +122,8 @@ class _Server:
     def close(self) -> dict:
         """Finish pending work and writes; the run's totals."""
         self.pool.shutdown(wait=True)
+        if self.monitor is not None:
+            self.monitor.close()
         if self.disk:
             self.disk.close()
             if self.disk.dropped:
@@ -196,10 +209,14 @@ class _Connection:
             rates.decode_ms.append(res.decode_ms)
             rates.perceive_ms.append(res.step_ms - res.decode_ms)
         self.latest = res.answer
-        await self.send(res.answer, t_recv)
+        latency = await self.send(res.answer, t_recv)
         if not res.error:
             self.keep(res)
             self.driven += 1
+            monitor = self.server.monitor
+            if monitor is not None and res.perception is not None and res.perception.frame is not None:
+                monitor.publish(res.perception, res.command, res.telemetry.speed_mps, latency,
+                                getattr(self.driver, "confirmed", ()), f"client {self.cid}")
 
     def work(self, message: str | bytes) -> _Result:
         """Runs on a worker thread: decode, perceive, decide."""
@@ -215,12 +232,15 @@ class _Connection:
         answer = encode_command(cmd.steering, cmd.throttle)
         return _Result(answer, (time.perf_counter() - t0) * 1e3, "", perception, cmd, tel, decode_ms=(t1 - t0) * 1e3)
 
-    async def send(self, answer: str, t_recv: float) -> None:
+    async def send(self, answer: str, t_recv: float) -> float | None:
+        """Send an answer; its latency in ms since the frame arrived (None if the client is gone)."""
         try:
             await self.ws.send(answer)
         except ConnectionClosed:
-            return  # the reader loop reports the disconnect
-        self.server.rates.answer_ms.append((time.perf_counter() - t_recv) * 1e3)
+            return None  # the reader loop reports the disconnect
+        ms = (time.perf_counter() - t_recv) * 1e3
+        self.server.rates.answer_ms.append(ms)
+        return ms
 
     def keep(self, res: _Result) -> None:
         """Hand a driven frame to the disk thread (recording, annotated frames)."""
@@ -254,6 +274,13 @@ def why_closed(e: ConnectionClosed, size_limit: int) -> str:
     return "no close frame"
 
 
+def latency_split(totals: dict) -> str:
+    """decode / perceive / answer medians and p99s of a run's totals, for its last log line."""
+    parts = [f"{k} median {totals[f'{k}_ms_median']:.1f} ms, p99 {totals[f'{k}_ms_p99']:.1f} ms"
+             for k in ("decode", "perceive", "answer") if f"{k}_ms_median" in totals]
+    return "; ".join(parts) or "no frames driven"
+
+
 def probe_driver(make_driver: Callable[[], Any]) -> None:
     """Build a driver and drive one grey frame, so what would fail every connection (an unknown
     lane method, a missing model file: models load on the first frame) fails before listening."""
@@ -284,10 +311,13 @@ async def serve(config: Config | None = None, options: ServerOptions | None = No
     try:
         await asyncio.get_running_loop().run_in_executor(server.pool, probe_driver, server.make_driver)
         async with ws_serve(server.handle, options.host, options.port,
-                            max_size=options.max_bytes * WS_SIZE_FACTOR, logger=ws_log) as ws_server:
+                            max_size=options.max_bytes * WS_SIZE_FACTOR, logger=ws_log,
+                            process_request=server.web.process_request if server.web else None) as ws_server:
             port = ws_server.sockets[0].getsockname()[1]
             log.info("drive server listening on ws://%s:%d (lanes %s, signs %s)", options.host, port,
                      config.lanes.method, "on" if config.signs.enabled else "off")
+            if server.web:
+                log.info("monitor: http://%s:%d/", options.host, port)
             if ready:
                 ready(port)
             reporter = asyncio.create_task(server.report_loop())
@@ -298,8 +328,8 @@ async def serve(config: Config | None = None, options: ServerOptions | None = No
                 ws_server.close()  # closes every connection (1001) and waits for their handlers
     finally:
         totals = server.close()
-    log.info("drive server stopped: %d frames, %d driven, %d skipped, %d bad", totals["frames"],
-             totals["processed"], totals["skipped"], totals["bad"])
+    log.info("drive server stopped: %d frames, %d driven, %d skipped, %d bad; %s", totals["frames"],
+             totals["processed"], totals["skipped"], totals["bad"], latency_split(totals))
     return totals
 
 

@@ -77,8 +77,10 @@ def _loop_length(track: Track) -> float | None:
 
 def run_session(track: Track, sim_config: SimConfig, out: Path | None, config: Config | None = None,
                 url: str | None = None, lockstep: bool = True, with_driver: bool = False,
-                video: bool = False, show_progress: bool = True) -> dict:
-    """Drive one run; returns the report (also written to out/report.json with out/path.png)."""
+                video: bool = False, show_progress: bool = True, server_options=None) -> dict:
+    """Drive one run; returns the report (also written to out/report.json with out/path.png).
+    server_options: the in-process drive server's (with_driver; default a free port on 127.0.0.1
+    with the monitor on); its sync_signs follows `lockstep`."""
     sim = Simulator(track, sim_config)
     config = config or Config()
     # the bar counts metres along the start's loop (a whole lap of laps would sit at 0 for minutes)
@@ -117,11 +119,16 @@ def run_session(track: Track, sim_config: SimConfig, out: Path | None, config: C
                     rep = run_inprocess(sim, driver, progress)
                     rep["decisions"] = driver.behaviour.decisions  # what the driver saw at each junction
             elif with_driver:
+                from dataclasses import replace
                 from signlane.sim.server import DriveServer, ServerOptions
-                with DriveServer(config, ServerOptions(port=0, sync_signs=lockstep), driver_factory=seen) as srv:
+                options = replace(server_options or ServerOptions(port=0), sync_signs=lockstep)
+                srv = DriveServer(config, options, driver_factory=seen)
+                with srv:
                     if seen is not None:
                         seen.latest = (None, None)  # the server's start-up probe drove a blank frame
                     rep = run_client(sim, srv.url, lockstep, progress)
+                # the server's own split of its time: decoding, the driver, and frame in -> answer out
+                rep["server_latency_ms"] = {k: v for k, v in (srv.totals or {}).items() if "_ms_" in k}
             else:
                 rep = run_client(sim, url, lockstep, progress)
         finally:
