@@ -13,9 +13,15 @@ The baseline is a server whose driver does nothing: JSON + base64 + JPEG decode 
 round trip only. It runs beside every row and is timed right before it in each repeat; 'x base'
 is the median over repeats of (row median / baseline median), robust to load drifting mid-run.
 
-    python benchmarks/drive.py [--frames 40] [--repeats 3] [--method NAME ...]
+    python benchmarks/drive.py [--frames 40] [--repeats 3] [--method NAME ...] [--viewers N]
 
-Lane-method rows run with signs off; the last row is the default config (signs on).
+Lane-method rows run with signs off; the last row is the default config (signs on). The server
+reports its own split of each frame's time: decode (JSON, base64, JPEG), perceive (the driver)
+and answer (frame in -> answer sent, waits included), medians and p99 over the run.
+
+--viewers N: each row also runs lockstep with N monitor viewers attached (a child process that
+streams /monitor as the page does: each JPEG decoded, then acked) right after a run with none,
+in every repeat, and a second table compares the answer latency (median, p99) of the two.
 """
 from __future__ import annotations
 
@@ -71,6 +77,60 @@ def _child(method: str | None, signs: bool, conn) -> None:
     conn.send(("totals", srv.totals))
 
 
+def _viewers_child(url: str, n: int, conn) -> None:
+    """N monitor viewers that stream until told to stop, decoding every JPEG as a page would;
+    sends back the frames each received."""
+    import threading
+    import cv2
+    from websockets.sync.client import connect as ws_connect
+    stop, joined = threading.Event(), threading.Barrier(n + 1)
+    counts = [0] * n
+
+    def view(i: int) -> None:
+        with ws_connect(f"{url}/monitor", max_size=None) as ws:
+            joined.wait()
+            while not stop.is_set():
+                try:
+                    msg = ws.recv(timeout=0.2)
+                except TimeoutError:
+                    continue
+                if isinstance(msg, bytes):
+                    cv2.imdecode(np.frombuffer(msg, np.uint8), cv2.IMREAD_COLOR)
+                    counts[i] += 1
+                    ws.send(json.dumps({"ack": counts[i]}))
+    threads = [threading.Thread(target=view, args=(i,), daemon=True) for i in range(n)]
+    for t in threads:
+        t.start()
+    joined.wait()
+    conn.send("ready")
+    conn.recv()
+    stop.set()
+    for t in threads:
+        t.join(5)
+    conn.send(counts)
+
+
+class Viewers:
+    """`with Viewers(url, n):` N monitor viewers attached (in a child process: they must not share
+    the timing client's GIL); .counts afterwards."""
+
+    def __init__(self, url: str, n: int):
+        ctx = mp.get_context("spawn")
+        self.conn, child = ctx.Pipe()
+        self.proc = ctx.Process(target=_viewers_child, args=(url, n, child), daemon=True)
+        self.counts: list[int] = []
+
+    def __enter__(self) -> "Viewers":
+        self.proc.start()
+        assert self.conn.recv() == "ready"
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.conn.send("stop")
+        self.counts = self.conn.recv()
+        self.proc.join(30)
+
+
 def lockstep(url: str, messages: list[bytes]) -> tuple[list[float], float]:
     """Round-trip ms per frame and frames/s, one frame in flight."""
     rtt = []
@@ -121,7 +181,7 @@ class ChildServer:
 
 
 def measure(name: str, method: str | None, signs: bool, messages: list[bytes], repeats: int,
-            base_url: str) -> dict:
+            base_url: str, viewers: int = 0, viewer_frames: int = 300) -> dict:
     """One row. Each repeat times the baseline server right before this one, so the ratio
     compares the two under the same load (the machine is shared; absolute numbers drift)."""
     srv = ChildServer(method, signs)
@@ -133,6 +193,18 @@ def measure(name: str, method: str | None, signs: bool, messages: list[bytes], r
                 base_runs.append(lockstep(base_url, messages))
                 runs.append(lockstep(url, messages))
             answers_s = statistics.median(flood(url, messages) for _ in range(repeats))
+            watched = []  # (no viewers, N viewers) lockstep runs back to back, their order alternating
+            long = (messages * (1 + viewer_frames // len(messages)))[:viewer_frames]
+            for k in range(repeats if viewers and method else 0):
+                if k % 2:
+                    with Viewers(url, viewers) as v:
+                        seen = lockstep(url, long)[0]
+                    alone = lockstep(url, long)[0]
+                else:
+                    alone = lockstep(url, long)[0]
+                    with Viewers(url, viewers) as v:
+                        seen = lockstep(url, long)[0]
+                watched.append((alone, seen, sum(v.counts)))
     except RuntimeError as e:
         return {"name": name, "error": str(e)}
     flood_frames = repeats * len(messages)
@@ -146,8 +218,28 @@ def measure(name: str, method: str | None, signs: bool, messages: list[bytes], r
             # lockstep never skips, so every skip happened during the floods
             "driven": 100.0 * (1 - srv.totals["skipped"] / flood_frames),
             # inside the server over the whole run (lockstep and floods): its own split of the time
-            "decode": srv.totals.get("decode_ms_median", float("nan")),
-            "perceive": srv.totals.get("perceive_ms_median", float("nan"))}
+            **{f"{k}_{q}": srv.totals.get(f"{k}_ms_{q}", float("nan"))
+               for k in ("decode", "perceive", "answer") for q in ("median", "p99")},
+            "watched": watched}
+
+
+def viewer_table(rows: list[dict], viewers: int) -> str:
+    """Answer latency at the client with no viewers and with N: median and p99 over all the
+    repeats' frames of each, their difference, and the median of the per-repeat p99 differences."""
+    out = []
+    for r in rows:
+        w = r.get("watched")
+        if not w:
+            continue
+        alone = np.concatenate([a for a, _, _ in w])
+        seen = np.concatenate([b for _, b, _ in w])
+        p99 = lambda a: float(np.percentile(a, 99))  # noqa: E731
+        out.append([r["name"], f"{np.median(alone):.1f}", f"{np.median(seen):.1f}",
+                    f"{np.median(seen) - np.median(alone):+.1f}", f"{p99(alone):.1f}", f"{p99(seen):.1f}",
+                    f"{p99(seen) - p99(alone):+.1f}", f"{statistics.median(p99(b) - p99(a) for a, b, _ in w):+.1f}",
+                    f"{p99(seen) / p99(alone):.2f}", f"{sum(n for _, _, n in w) / len(seen):.2f}"])
+    return table(["server", "median 0 viewers", f"median {viewers} viewers", "diff", "p99 0 viewers",
+                  f"p99 {viewers} viewers", "diff", "per-repeat diff", "p99 ratio", "viewer frames/driven"], out)
 
 
 def main() -> None:
@@ -156,6 +248,10 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=3, help="repeats; the table shows medians (default 3)")
     ap.add_argument("--method", action="append", help="lane method(s) (default: all available)")
     ap.add_argument("--seed", type=int, default=4)
+    ap.add_argument("--viewers", type=int, default=0,
+                    help="also compare lockstep answer latency with this many monitor viewers attached (default 0)")
+    ap.add_argument("--viewer-frames", type=int, default=300,
+                    help="frames per run of the viewer comparison (the messages cycled; default 300)")
     args = ap.parse_args()
     sampler = DriveSampler(args.seed, SamplerConfig(640, 480, effects="normal"))
     messages = [encode_telemetry(0.0, 0.5, 8.0, encode_jpeg(sampler.sample(i).image), time=i / 30)
@@ -165,20 +261,28 @@ def main() -> None:
         lockstep(base_url, messages[:5])
         rows = [measure(BASELINE, None, False, messages, args.repeats, base_url)]
         for m in args.method or lanes.available():
-            rows.append(measure(m, m, False, messages, args.repeats, base_url))
+            rows.append(measure(m, m, False, messages, args.repeats, base_url, args.viewers, args.viewer_frames))
         default = Config().lanes.method  # and the default driver as `signlane drive` runs it: signs on
-        rows.append(measure(f"{default} + signs", default, True, messages, args.repeats, base_url))
+        rows.append(measure(f"{default} + signs", default, True, messages, args.repeats, base_url, args.viewers,
+                            args.viewer_frames))
     print(f"640x480 frames, {kb:.0f} KB per message, {args.frames} frames x {args.repeats} repeats (medians)")
-    print(table(["server", "answer median ms", "answer p99 ms", "decode ms", "perceive ms", "base ms", "x base",
-                 "lockstep fps", "flood ans/s", "driven %"],
-                [[r["name"], f"{r['median']:.1f}", f"{r['p99']:.1f}", f"{r['decode']:.1f}", f"{r['perceive']:.1f}",
-                  f"{r['base']:.1f}", f"{r['ratio']:.2f}", f"{r['fps']:.1f}", f"{r['flood']:.0f}", f"{r['driven']:.0f}"]
+    print(table(["server", "answer median ms", "answer p99 ms", "decode med/p99", "perceive med/p99",
+                 "server answer med/p99", "base ms", "x base", "lockstep fps", "flood ans/s", "driven %"],
+                [[r["name"], f"{r['median']:.1f}", f"{r['p99']:.1f}", f"{r['decode_median']:.1f} / {r['decode_p99']:.1f}",
+                  f"{r['perceive_median']:.1f} / {r['perceive_p99']:.1f}",
+                  f"{r['answer_median']:.1f} / {r['answer_p99']:.1f}", f"{r['base']:.1f}", f"{r['ratio']:.2f}",
+                  f"{r['fps']:.1f}", f"{r['flood']:.0f}", f"{r['driven']:.0f}"]
                  for r in rows if "error" not in r]))
+    if args.viewers:
+        print(f"\nanswer latency at the client (ms), lockstep, without and with {args.viewers} monitor viewers: the "
+              f"same server, {args.repeats} pairs of {args.viewer_frames}-frame runs back to back, their order "
+              "alternating; statistics over all frames of each condition")
+        print(viewer_table([r for r in rows if "error" not in r], args.viewers))
     for r in rows:
         if "error" in r:
             print(f"{r['name']}: unavailable: {r['error'][:90]}")
-    print("answer: message in -> answer out at the client (lockstep); decode and perceive: the server's own split "
-          "(medians over the run); base ms: the baseline server timed in the same repeats; x base: median of "
+    print("answer: message in -> answer out at the client (lockstep); decode, perceive and server answer: the "
+          "server's own split (median / p99 over the whole run, floods and viewer runs included); base ms: the baseline server timed in the same repeats; x base: median of "
           "per-repeat ratios. "
           "Shared 2-core machine: absolute times are upper bounds.")
 

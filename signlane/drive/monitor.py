@@ -9,6 +9,9 @@ same topic share one encoding.
 """
 from __future__ import annotations
 
+import asyncio
+import json
+import os
 import threading
 import time
 from collections import deque
@@ -32,6 +35,10 @@ TOPICS = {
 }
 ALIGNED = {"rgb", "mask", "canny"}  # in the camera's pixels: the page draws lanes and boxes over them
 JPEG_QUALITY = 70
+MAX_VIEWER_FPS = 15.0  # a person watching needs no more; each frame encoded is CPU the driver could use
+STREAM_WIDTH = 320  # streamed frames are at most this wide (a quarter of VIA's pixels to encode and decode);
+# the page draws the overlays from the full frame's numbers, so lanes and boxes stay sharp
+MONITOR_NICE = 10  # the encoding thread yields the CPU to the driver's threads (Linux: per-thread niceness)
 HISTORY = 3000  # samples kept for the plots (100 s at 30 frames/s)
 
 
@@ -68,8 +75,10 @@ class Monitor:
         self._cache = _Cache()
         self._lock = threading.Lock()
         self._birdseye: dict[tuple[int, int], object] = {}
-        # one thread: viewers never take more than one core from the driver, however many there are
-        self.pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="monitor")
+        self._waiters: list[tuple[asyncio.AbstractEventLoop, asyncio.Event]] = []
+        # one low-priority thread: viewers never take more than one core from the driver, however
+        # many there are, and only what the driver leaves
+        self.pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="monitor", initializer=_lower_priority)
 
     def publish(self, perception: Perception, command: Command, speed_mps: float, latency_ms: float | None = None,
                 confirmed=(), source: str = "") -> None:
@@ -83,6 +92,26 @@ class Monitor:
         self._walls.append(now)
         self.latest = Snapshot(self._seq, now, perception, command, float(speed_mps), latency_ms,
                                tuple(getattr(d, "label", str(d)) for d in confirmed), source)
+        for loop, event in list(self._waiters):  # wake the viewers (none attached: nothing to do)
+            loop.call_soon_threadsafe(event.set)
+
+    def watch(self, loop: asyncio.AbstractEventLoop, event: asyncio.Event) -> None:
+        """A viewer's event, set (on its loop) whenever a frame is published."""
+        self._waiters.append((loop, event))
+        self.viewers += 1
+
+    def unwatch(self, event: asyncio.Event) -> None:
+        self._waiters = [w for w in self._waiters if w[1] is not event]
+        self.viewers -= 1
+
+    def message(self, snap: Snapshot, topic: str, after: int, width: int = STREAM_WIDTH) -> tuple[str, bytes, int]:
+        """(state JSON text, topic JPEG at most `width` wide, newest sample index) for a viewer:
+        all the work of one streamed frame, done on the monitor thread rather than the server's
+        event loop."""
+        data = self.jpeg(snap, topic, width)
+        state = self.state(snap, after)
+        state.update(topic=topic, aligned=topic in ALIGNED)
+        return json.dumps(state), data, (state["samples"][-1][0] if state["samples"] else after)
 
     def fps(self) -> float:
         w = list(self._walls)
@@ -118,16 +147,22 @@ class Monitor:
                 "confirmed": list(snap.confirmed),
                 "timing_ms": {k: round(v, 2) for k, v in p.timing_ms.items()}}
 
-    def jpeg(self, snap: Snapshot, topic: str) -> bytes:
-        """The snapshot's topic as JPEG bytes (monitor thread); each (frame, topic) encoded once."""
+    def jpeg(self, snap: Snapshot, topic: str, width: int = 0) -> bytes:
+        """The snapshot's topic as JPEG bytes, at most `width` wide (0: as it is), on the monitor
+        thread; each (frame, topic, width) encoded once, however many viewers ask."""
+        key = f"{topic}@{width}"
         with self._lock:
-            if self._cache.seq == snap.seq and topic in self._cache.frames:
-                return self._cache.frames[topic]
-        data = encode_jpeg(self.topic_image(snap, topic))
+            if self._cache.seq == snap.seq and key in self._cache.frames:
+                return self._cache.frames[key]
+        image = self.topic_image(snap, topic)
+        if 0 < width < image.shape[1]:
+            image = cv2.resize(image, (width, max(1, round(image.shape[0] * width / image.shape[1]))),
+                               interpolation=cv2.INTER_AREA)
+        data = encode_jpeg(image)
         with self._lock:
             if self._cache.seq != snap.seq:
                 self._cache = _Cache(snap.seq)
-            self._cache.frames[topic] = data
+            self._cache.frames[key] = data
             self.encoded += 1
         return data
 
@@ -161,6 +196,13 @@ class Monitor:
 
     def close(self) -> None:
         self.pool.shutdown(wait=False, cancel_futures=True)
+
+
+def _lower_priority() -> None:
+    try:
+        os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), MONITOR_NICE)  # this thread only, on Linux
+    except (AttributeError, OSError):
+        pass  # elsewhere: the thread keeps the process's priority
 
 
 def encode_jpeg(image: np.ndarray, quality: int = JPEG_QUALITY) -> bytes:

@@ -14,6 +14,7 @@ import http
 import ipaddress
 import json
 import logging
+import math
 from pathlib import Path
 from urllib.parse import parse_qs, urlsplit
 
@@ -21,7 +22,7 @@ from websockets.datastructures import Headers
 from websockets.exceptions import ConnectionClosed
 from websockets.http11 import Request, Response
 
-from signlane.drive.monitor import ALIGNED, TOPICS, Monitor
+from signlane.drive.monitor import MAX_VIEWER_FPS, TOPICS, Monitor
 
 log = logging.getLogger("signlane.monitor")
 PAGE_DIR = Path(__file__).parent / "web"
@@ -30,7 +31,6 @@ STATIC = {"/": ("monitor.html", "text/html; charset=utf-8"),
           "/web/index.html": ("monitor.html", "text/html; charset=utf-8"),  # where VIA's Visualizer lives
           "/monitor.js": ("monitor.js", "text/javascript; charset=utf-8")}
 VIEWER_PATH = "/monitor"
-IDLE_POLL_S = 0.01  # how often a waiting viewer looks for a newer frame
 
 
 def is_loopback(host: str) -> bool:
@@ -128,30 +128,38 @@ class WebMonitor:
                 if "ack" in msg or "topic" in msg:
                     ready.set()
 
-        m.viewers += 1
+        fresh = asyncio.Event()  # set by Monitor.publish whenever a frame is driven
+        m.watch(loop, fresh)
         reader = asyncio.create_task(read())
         last_seq = last_sample = 0
+        next_at = 0.0
         try:
             while not reader.done():
-                await ready.wait()
+                await ready.wait()  # the page has drawn the last frame (or changed topic)
+                fresh.clear()  # before looking: a frame published from here on wakes the wait below
                 snap = m.latest
                 if snap is None or (snap.seq == last_seq and not want["changed"]):
-                    await asyncio.sleep(IDLE_POLL_S)
+                    waiter = asyncio.ensure_future(fresh.wait())
+                    await asyncio.wait([waiter, reader], return_when=asyncio.FIRST_COMPLETED)
+                    waiter.cancel()
+                    continue
+                wait = next_at - loop.time()
+                if wait > 0 and not want["changed"]:
+                    await asyncio.sleep(wait)  # at most MAX_VIEWER_FPS: the newest frame after the pause
                     continue
                 ready.clear()
                 topic, want["changed"] = want["topic"], False
-                data = await loop.run_in_executor(m.pool, m.jpeg, snap, topic)
-                state = m.state(snap, last_sample)
-                state.update(topic=topic, aligned=topic in ALIGNED)
-                await ws.send(json.dumps(state))
+                # the next slot on a clock all viewers share: viewers of one topic take the same
+                # newest frame at the same moment, and the monitor encodes it once for them all
+                next_at = (math.floor(loop.time() * MAX_VIEWER_FPS) + 1) / MAX_VIEWER_FPS
+                text, data, last_sample = await loop.run_in_executor(m.pool, m.message, snap, topic, last_sample)
+                await ws.send(text)
                 await ws.send(data)
                 last_seq = snap.seq
-                if state["samples"]:
-                    last_sample = state["samples"][-1][0]
         except ConnectionClosed:
             pass
         finally:
-            m.viewers -= 1
+            m.unwatch(fresh)
             reader.cancel()
             await asyncio.gather(reader, return_exceptions=True)
 

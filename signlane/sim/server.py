@@ -10,7 +10,8 @@ text, the server answers one command, as a text frame of plain-number JSON:
     only make the car act on ever older images; skipping keeps perception on the newest frame and
     the backlog at zero. A lockstep client (one frame in flight) never sees a skip.
 Bad frames get one (rate-limited) log line and SAFE_COMMAND; nothing a client sends stops the
-server. Run it with `signlane drive`, `serve()` inside an event loop, or `DriveServer` in a
+server. The same port serves the live monitor (signlane/drive/web.py): plain HTTP GETs get its
+page, WebSockets to /monitor are viewers; each driven frame is handed to it by reference only. Run it with `signlane drive`, `serve()` inside an event loop, or `DriveServer` in a
 background thread (tests, `signlane sim --with-driver`).
 """
 from __future__ import annotations
