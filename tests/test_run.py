@@ -156,3 +156,24 @@ def test_actuator_specs_and_smoothing():
     assert [s.step(v) for v in (0.4, 0.0, 0.0)] == [0.4, 0.2, 0.1]
     with pytest.raises(ValueError):
         SteeringSmoother(0.0)
+
+
+def test_run_serves_the_monitor_and_no_simulator_socket(bend_video):
+    import urllib.request
+    from websockets.exceptions import ConnectionClosed
+    from websockets.sync.client import connect
+    from signlane.drive.monitor import Monitor
+    from signlane.drive.monitor_server import MonitorServer
+    from signlane.drive.sources import VideoSource
+    monitor, actuator = Monitor(), Recorder()
+    with MonitorServer(monitor, port=0) as srv:
+        run_loop(VideoSource(bend_video).start(), DriveStack(Config.load(None, ["signs.enabled=false"])), actuator,
+                 monitor)
+        with urllib.request.urlopen(f"http://127.0.0.1:{srv.port}/api/state", timeout=10) as r:
+            state = json.loads(r.read())
+        with connect(f"ws://127.0.0.1:{srv.port}/") as ws, pytest.raises(ConnectionClosed) as closed:
+            ws.recv(timeout=10)
+    driven = actuator.commands[:-1]  # the last is the stop at the end of the video
+    assert state["seq"] == len(driven) and state["command"]["steering"] == round(driven[-1].steering, 4)
+    assert state["source"] == f"video {bend_video}" and state["encoded"] == 0
+    assert closed.value.rcvd.code == 1008
