@@ -275,7 +275,7 @@ def main() -> None:
                  for r in rows if "error" not in r]))
     if args.viewers:
         print(f"\nanswer latency at the client (ms), lockstep, without and with {args.viewers} monitor viewers: the "
-              f"same server, {args.repeats} pairs of {args.viewer_frames}-frame runs back to back, their order "
+              f"same server, {args.repeats} pair(s) of {args.viewer_frames}-frame runs back to back, their order "
               "alternating; statistics over all frames of each condition")
         print(viewer_table([r for r in rows if "error" not in r], args.viewers))
     for r in rows:
