@@ -11,6 +11,9 @@ $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e '.[train,test]'
+	# donkeycar's own tub reader checks `export-drive --format tub` (tests/test_tub_export.py);
+	# without its dependencies (TensorFlow and more), only what reading a tub imports
+	$(PY) -m pip install --quiet --no-deps donkeycar==5.3.0 pyfiglet==1.0.4 prettytable==3.19.0 wcwidth==0.9.4
 	touch $(STAMP)
 
 install: $(STAMP)

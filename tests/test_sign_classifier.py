@@ -5,6 +5,7 @@ import cv2
 import numpy as np
 import onnx
 import pytest
+import torch
 
 from signlane.onnx_model import ModelError, make_metadata
 from signlane.signs.classifier import DEFAULT_SPEC, TASK, SignClassifier, preprocess_crops
@@ -39,13 +40,24 @@ def test_smoke_training_writes_its_outputs(trained):
 def test_train_command_runs_either_kind_and_reports_bad_data_in_one_line(trained, tmp_path, capsys):
     from signlane.cli import main
     root = trained[0]
-    code = main(["train", "signs", str(root / "data"), "--out", str(tmp_path / "run"), "--epochs", "1",
-                 "--batch-size", "32", "--workers", "0", "--threads", "1", "--augment", "0.5"])
+    # a config file sets what the command line leaves alone; any Lightning Trainer argument is a flag
+    (tmp_path / "train.toml").write_text("[train]\nepochs = 1\nbatch_size = 16\naugment = 0.25\n"
+                                         "[trainer]\nlimit_train_batches = 3\n")
+    code = main(["train", "signs", str(root / "data"), "--out", str(tmp_path / "run"), "--config",
+                 str(tmp_path / "train.toml"), "--batch-size", "32", "--workers", "0", "--threads", "1",
+                 "--augment", "0.5", "--trainer.gradient_clip_val", "0.5", "--trainer.limit_val_batches", "2"])
     out = capsys.readouterr().out
     assert "accuracy" in json.loads(out[out.index("{\n"):])
     assert code == 0 and (tmp_path / "run" / "checkpoints" / "last.ckpt").exists()
     config = json.loads((tmp_path / "run" / "config.json").read_text())
-    assert config["threads"] == 1 and config["augment"] == 0.5
+    assert config["threads"] == 1 and config["augment"] == 0.5 and config["batch_size"] == 32 and config["epochs"] == 1
+    assert config["trainer"] == {"limit_train_batches": 3, "gradient_clip_val": 0.5, "limit_val_batches": 2}
+    ckpt = torch.load(tmp_path / "run" / "checkpoints" / "last.ckpt", map_location="cpu", weights_only=False)
+    assert ckpt["global_step"] == 3  # one epoch of 3 batches (limit_train_batches), not the whole set
+    # the run's train.toml repeats it: the same options, resolved
+    assert main(["train", "signs", "--config", str(tmp_path / "run" / "train.toml"), "--print-config"]) == 0
+    again = capsys.readouterr().out
+    assert again == (tmp_path / "run" / "train.toml").read_text() and "gradient_clip_val = 0.5" in again
     for kind in ("signs", "lanes"):
         assert main(["train", kind, str(tmp_path / "none"), "--out", str(tmp_path / kind)]) == 2
     err = capsys.readouterr().err.strip().splitlines()

@@ -168,3 +168,44 @@ def test_export_needs_no_torch():
             "print('torch' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert "donkeycar" in out and out.strip().splitlines()[-1] == "False"
+
+
+# donkeycar's own reader, run in its own process (importing donkeycar prints a banner, configures
+# logging and raises the recursion limit): Tub iterates the catalogs, TubRecord loads the images
+# as its training pipeline does. `.ci/run` installs donkeycar without its heavy dependencies.
+DONKEY_READS = """
+import json, sys
+from donkeycar.config import Config
+from donkeycar.parts.tub_v2 import Tub
+from donkeycar.pipeline.types import TubRecord
+tub = Tub(sys.argv[1], read_only=True)
+cfg = Config()
+cfg.IMAGE_W, cfg.IMAGE_H, cfg.IMAGE_DEPTH = 320, 240, 3
+out = []
+for rec in tub:
+    image = TubRecord(cfg, tub.base_path, rec).image()
+    out.append({"angle": rec["user/angle"], "throttle": rec["user/throttle"], "mode": rec["user/mode"],
+                "index": rec["_index"], "shape": list(image.shape), "mean": float(image.mean())})
+print("RESULT " + json.dumps({"inputs": tub.manifest.inputs, "types": tub.manifest.types, "n": len(tub),
+                               "records": out}))
+"""
+
+
+def test_donkeycars_own_tub_reader_reads_the_export(recording, tmp_path):
+    import importlib.util
+    if importlib.util.find_spec("donkeycar") is None:
+        pytest.skip("donkeycar is not installed (.ci/run installs it)")
+    out = tmp_path / "tub"
+    export_drive_tub(recording, out, max_len=8, progress=False)  # three catalogs
+    done = subprocess.run([sys.executable, "-c", DONKEY_READS, str(out)], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr[-2000:]
+    got = json.loads(done.stdout[done.stdout.index("RESULT ") + 7:])
+    assert got["inputs"] == INPUTS and got["types"] == TYPES and got["n"] == 21
+    frames = recorded(recording)
+    assert [r["index"] for r in got["records"]] == list(range(21))
+    assert [r["angle"] for r in got["records"]] == [f["command"]["steering"] for f in frames]
+    assert [r["throttle"] for r in got["records"]] == [f["command"]["throttle"] for f in frames]
+    assert {r["mode"] for r in got["records"]} == {"user"}
+    for r, f in zip(got["records"], frames):  # the very pixels of the recorded frame, RGB
+        assert r["shape"] == [H, W, 3]
+        assert abs(r["mean"] - float(cv2.imread(str(recording / f["image"])).mean())) < 0.5

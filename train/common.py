@@ -5,7 +5,6 @@ import json
 import logging
 import random
 import zipfile
-from dataclasses import dataclass
 from pathlib import Path
 
 import lightning as L
@@ -14,6 +13,7 @@ import torch
 from lightning.pytorch.callbacks import EarlyStopping, ModelCheckpoint
 from lightning.pytorch.loggers import CSVLogger, TensorBoardLogger
 
+from signlane.commands.trainer_flags import RUN_OWNED  # the run's own: checkpoints, logs, epochs
 from signlane.fileio import atomic_write_text
 
 # lightning gives its logger a stderr handler of its own and still lets it propagate: with the
@@ -23,34 +23,31 @@ if logging.getLogger().hasHandlers():
         logging.getLogger("lightning").removeHandler(_h)
 
 
-@dataclass(frozen=True)
-class ScaleOut:
-    """Lightning's scale-out flags, passed straight through."""
-
-    accelerator: str = "auto"
-    devices: str = "auto"
-    num_nodes: int = 1
-    strategy: str = "auto"
 
 
-def build_trainer(out: Path, epochs: int, monitor: str, mode: str, patience: int, scale: ScaleOut,
+def build_trainer(out: Path, epochs: int, monitor: str, mode: str, patience: int, trainer_args: dict | None = None,
                   extra_callbacks: list | None = None, quiet: bool = False,
                   deterministic: bool = True) -> tuple[L.Trainer, ModelCheckpoint]:
     """A Trainer writing CSV + TensorBoard logs and checkpoints to out: best.ckpt (by `monitor`)
     and last.ckpt after every epoch, so --resume continues from the last finished epoch.
-    deterministic: torch's deterministic algorithms wherever an op has one ("warn": an op
-    without one, on some GPU, warns instead of stopping the run)."""
+    trainer_args: any other Lightning Trainer arguments (accelerator, devices, precision,
+    gradient_clip_val, ...), passed straight through. deterministic: torch's deterministic
+    algorithms wherever an op has one ("warn": an op without one, on some GPU, warns instead of
+    stopping the run)."""
+    trainer_args = dict(trainer_args or {})
+    owned = sorted(set(trainer_args) & set(RUN_OWNED))
+    if owned:
+        raise ValueError(f"Trainer argument(s) {', '.join(owned)} are set by the run itself")
     ckpt = ModelCheckpoint(dirpath=out / "checkpoints", filename="best", monitor=monitor, mode=mode, save_top_k=1)
     # its own callback: ModelCheckpoint(save_last=True) writes last only when `monitor` improves
     last = ModelCheckpoint(dirpath=out / "checkpoints", filename="last", monitor=None, save_top_k=1,
                            every_n_epochs=1, enable_version_counter=False)
     callbacks = [ckpt, last, EarlyStopping(monitor=monitor, mode=mode, patience=patience)] + (extra_callbacks or [])
-    devices = int(scale.devices) if str(scale.devices).isdigit() else scale.devices
+    args = {"enable_progress_bar": not quiet, "enable_model_summary": not quiet, "log_every_n_steps": 10,
+            **trainer_args}
     trainer = L.Trainer(max_epochs=epochs, default_root_dir=out, callbacks=callbacks,
                         logger=[CSVLogger(out, name="logs"), TensorBoardLogger(out, name="tensorboard")],
-                        accelerator=scale.accelerator, devices=devices, num_nodes=scale.num_nodes,
-                        strategy=scale.strategy, enable_progress_bar=not quiet, enable_model_summary=not quiet,
-                        log_every_n_steps=10, deterministic="warn" if deterministic else False)
+                        deterministic="warn" if deterministic else False, **args)
     return trainer, ckpt
 
 

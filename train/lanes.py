@@ -14,7 +14,7 @@ from signlane.fileio import atomic_write_text
 from signlane.label_masks import IGNORE
 from signlane.lanes.seg_model import DEFAULT_SPEC, marking_probability, preprocess_frames, to_frame_mask
 from signlane.splits import VAL_FRACTION
-from signlane_train.common import ScaleOut, build_trainer, resume_path, save_run_config
+from signlane_train.common import build_trainer, resume_path, save_run_config
 from signlane_train.lane_data import FrameDataset, LaneDataModule, read_pair
 from signlane_train.lane_net import count_parameters
 from signlane_train.lane_task import LaneTask
@@ -25,7 +25,7 @@ log = logging.getLogger(__name__)
 
 def train_lanes(data: list[str | Path], out: str | Path, epochs: int = 15, batch_size: int = 32, lr: float = 4e-3,
                 width: int = 16, val_fraction: float = VAL_FRACTION, patience: int = 5, seed: int = 0, resume: bool = False,
-                scale: ScaleOut = ScaleOut(), workers: int = 1, quiet: bool = False, pos_weight: float = 4.0,
+                trainer_args: dict | None = None, workers: int = 1, quiet: bool = False, pos_weight: float = 4.0,
                 eval_frames: int = 300, threads: int = 0, deterministic: bool = True) -> dict:
     """Train; writes checkpoints/, logs/, tensorboard/, samples/epoch_<k>.png, config.json and
     report.json (the best checkpoint's val scores).
@@ -52,8 +52,8 @@ def train_lanes(data: list[str | Path], out: str | Path, epochs: int = 15, batch
                           "val_fraction": val_fraction, "seed": seed, "deterministic": deterministic,
                           "input": [DEFAULT_SPEC.width, DEFAULT_SPEC.height],
                           "parameters": count_parameters(task.net), "train_frames": len(dm.train_items),
-                          "val_frames": len(dm.val_items), "threads": threads, "scale_out": scale.__dict__})
-    trainer, ckpt = build_trainer(out, epochs, "val/iou", "max", patience, scale, [info], quiet=quiet,
+                          "val_frames": len(dm.val_items), "threads": threads, "trainer": trainer_args or {}})
+    trainer, ckpt = build_trainer(out, epochs, "val/iou", "max", patience, trainer_args, [info], quiet=quiet,
                                   deterministic=deterministic)
     t0 = time.perf_counter()
     trainer.fit(task, datamodule=dm, ckpt_path=ckpt_path)

@@ -11,7 +11,7 @@ import torch
 from signlane.sign_report import write_sign_report
 from signlane.splits import VAL_FRACTION
 from signlane.world.art import SIGN_CLASSES
-from signlane_train.common import ScaleOut, build_trainer, resume_path, save_run_config
+from signlane_train.common import build_trainer, resume_path, save_run_config
 from signlane_train.run_info import RunInfo
 from signlane_train.sign_data import CropDataset, SignDataModule
 from signlane_train.sign_task import SignTask
@@ -21,7 +21,7 @@ log = logging.getLogger(__name__)
 
 def train_signs(data: list[str | Path], out: str | Path, epochs: int = 20, batch_size: int = 128, lr: float = 3e-3,
                 size: int = 32, val_fraction: float = VAL_FRACTION, patience: int = 6, seed: int = 0, resume: bool = False,
-                scale: ScaleOut = ScaleOut(), workers: int = 0, quiet: bool = False, width: int = 16,
+                trainer_args: dict | None = None, workers: int = 0, quiet: bool = False, width: int = 16,
                 class_weights: str = "sqrt", threads: int = 0, augment: float = 1.0,
                 deterministic: bool = True) -> dict:
     """Train; writes checkpoints/, logs/, tensorboard/, config.json, confusion.png, errors_<class>.png.
@@ -55,8 +55,8 @@ def train_signs(data: list[str | Path], out: str | Path, epochs: int = 20, batch
                           "val_fraction": val_fraction, "workers": workers, "threads": threads,
                           "seed": seed, "deterministic": deterministic, "train_crops": len(dm.train_items),
                           "val_crops": len(dm.val_items),
-                          "scale_out": scale.__dict__})
-    trainer, ckpt = build_trainer(out, epochs, "val/acc", "max", patience, scale, [info], quiet=quiet,
+                          "trainer": trainer_args or {}})
+    trainer, ckpt = build_trainer(out, epochs, "val/acc", "max", patience, trainer_args, [info], quiet=quiet,
                                   deterministic=deterministic)
     t0 = time.perf_counter()
     trainer.fit(task, datamodule=dm, ckpt_path=ckpt_path)

@@ -10,25 +10,20 @@ from signlane.commands.common import UserError, add_config_args, load_config, po
 
 
 # --- train / export / classify --------------------------------------------------------------------
-def _add_scale_out(p) -> None:
-    g = p.add_argument_group("scale-out (passed to Lightning)")
-    g.add_argument("--accelerator", default="auto", help="cpu, gpu, auto (default auto)")
-    g.add_argument("--devices", default="auto", help="number of devices or 'auto' (default auto)")
-    g.add_argument("--num-nodes", type=int, default=1, help="machines (default 1)")
-    g.add_argument("--strategy", default="auto", help="e.g. ddp (default auto)")
-
-
-def add_train(sub) -> None:
+def add_train(sub, lightning_flags: bool = True) -> None:
+    """lightning_flags: add a flag per Lightning Trainer argument (importing Lightning, which
+    takes seconds: only when the command line is a `train` one)."""
     p = sub.add_parser("train", help="train the sign classifier or lane segmentation (needs the train extra)",
                        description="Train a model with Lightning on datasets from `signlane gen` (or autolabel). "
                                    "Writes checkpoints/ (best.ckpt, last.ckpt), logs/ (CSV), tensorboard/, "
-                                   "config.json and report pictures to --out. Resume a killed run with --resume.")
+                                   "config.json, train.toml (the resolved options: rerun with --config) and report "
+                                   "pictures to --out. Resume a killed run with --resume.")
     kinds = p.add_subparsers(dest="kind", required=True, metavar="{signs,lanes}")
     signs = kinds.add_parser("signs", help="the sign classifier on ImageFolder crops",
                              description="Train the sign classifier (a small CNN) on one or more ImageFolder crop "
-                                         "sets; writes confusion.png and errors_<class>.png at the end.")
-    signs.add_argument("data", nargs="+", type=Path, help="crop folders (<class>/<id>.png)")
-    signs.add_argument("--out", type=Path, required=True, help="run folder")
+                                         "sets; writes confusion.png and errors_<class>.png at the end. " + _CONFIG_HELP)
+    signs.add_argument("data", nargs="*", type=Path, help="crop folders (<class>/<id>.png)")
+    signs.add_argument("--out", type=Path, help="run folder (required, here or in the config file)")
     signs.add_argument("--epochs", type=positive, default=20, help="maximum epochs (default 20)")
     signs.add_argument("--batch-size", type=positive, default=128, help="batch size (default 128)")
     signs.add_argument("--lr", type=float, default=3e-3, help="peak learning rate (default 3e-3)")
@@ -42,23 +37,27 @@ def add_train(sub) -> None:
                             "crops 0.5 scored no better)")
     signs.add_argument("--seed", type=int, default=0, help="training seed (default 0)")
     _add_cpu_args(signs, workers=1)
-    signs.add_argument("--resume", action="store_true",
-                       help="continue from --out/checkpoints/last.ckpt (saved after every epoch)")
-    _add_scale_out(signs)
-    _add_train_lanes(kinds)
+    _add_run_args(signs, lightning_flags)
+    _add_train_lanes(kinds, lightning_flags)
     p.set_defaults(func=_run_train)
 
 
-def _add_train_lanes(kinds) -> None:
+_CONFIG_HELP = ("Options come from the command line, else from --config FILE.toml ([train]: these options by "
+                "their long names with underscores, data as a list; [trainer]: Lightning Trainer arguments), "
+                "else the defaults.")
+
+
+def _add_train_lanes(kinds, lightning_flags: bool) -> None:
     lanes = kinds.add_parser("lanes", help="the lane-marking segmentation net on lane datasets",
                              description="Train the lane-marking segmentation net (for `--lanes segnet`) on one or "
                                          "more lane datasets: `signlane gen lanes` output, `signlane autolabel lanes` "
                                          "output, or folders of images/ + masks/<stem>.png, mixed freely. Masks are "
                                          "read as the manifest's mask_encoding says (class ids 0/1 with 255 = "
                                          "ignore, left out of loss and metrics), binary 0/255 without one. Writes "
-                                         "samples/epoch_<k>.png (truth green, prediction red) every epoch.")
-    lanes.add_argument("data", nargs="+", type=Path, help="lane dataset folders")
-    lanes.add_argument("--out", type=Path, required=True, help="run folder")
+                                         "samples/epoch_<k>.png (truth green, prediction red) every epoch. "
+                                         + _CONFIG_HELP)
+    lanes.add_argument("data", nargs="*", type=Path, help="lane dataset folders")
+    lanes.add_argument("--out", type=Path, help="run folder (required, here or in the config file)")
     lanes.add_argument("--epochs", type=positive, default=15, help="maximum epochs (default 15)")
     lanes.add_argument("--batch-size", type=positive, default=32, help="batch size (default 32)")
     lanes.add_argument("--lr", type=float, default=4e-3, help="peak learning rate (default 4e-3)")
@@ -68,9 +67,26 @@ def _add_train_lanes(kinds) -> None:
     lanes.add_argument("--patience", type=positive, default=5, help="early-stopping patience in epochs (default 5)")
     lanes.add_argument("--seed", type=int, default=0, help="training seed (default 0)")
     _add_cpu_args(lanes, workers=1)
-    lanes.add_argument("--resume", action="store_true",
-                       help="continue from --out/checkpoints/last.ckpt (saved after every epoch)")
-    _add_scale_out(lanes)
+    _add_run_args(lanes, lightning_flags)
+
+
+def _add_run_args(p, lightning_flags: bool) -> None:
+    """--resume, --config, --print-config and the Trainer's flags; then every option's default is
+    kept aside, so the config file can tell an option given from one left at its default."""
+    from signlane.commands.trainer_flags import add_trainer_flags
+    p.add_argument("--resume", action="store_true",
+                   help="continue from --out/checkpoints/last.ckpt (saved after every epoch)")
+    p.add_argument("--config", type=Path, help="training config file (TOML, [train] and [trainer] tables)")
+    p.add_argument("--print-config", action="store_true",
+                   help="print the resolved options as a config file (TOML) and exit without training")
+    if lightning_flags:
+        add_trainer_flags(p)
+    defaults = {}
+    for a in p._actions:
+        if a.option_strings and a.dest not in ("help", "config", "print_config") and not a.dest.startswith("trainer."):
+            defaults[a.dest] = a.default
+            a.default = argparse.SUPPRESS
+    p.set_defaults(_option_defaults=defaults)
 
 
 def _add_cpu_args(p, workers: int) -> None:
@@ -83,23 +99,56 @@ def _add_cpu_args(p, workers: int) -> None:
                         "--no-deterministic may be faster on GPUs (augmentations follow --seed either way)")
 
 
-def _run_train(args) -> int:
+def _train_options(args) -> tuple[dict, dict]:
+    """(signlane's options, Trainer arguments): the command line over the config file over the
+    defaults; an unknown key or a bad value is one UserError line."""
+    from signlane.commands.trainer_flags import read_train_config, trainer_args
+    defaults = args._option_defaults
     try:
-        from signlane_train.common import ScaleOut
+        file_train, file_trainer = read_train_config(args.config)
+        unknown = sorted(set(file_train) - set(defaults) - {"data"})
+        if unknown:
+            raise ValueError(f"{args.config}: [train] has no option {', '.join(unknown)} "
+                             f"(options: data, {', '.join(sorted(defaults))})")
+        trainer = trainer_args(args, file_trainer)
+    except ValueError as e:
+        raise UserError(str(e)) from None
+    given = {k: getattr(args, k) for k in defaults if hasattr(args, k)}
+    opts = {**defaults, **file_train, **given}
+    data = args.data or file_train.get("data") or []
+    opts["data"] = [Path(d) for d in ([data] if isinstance(data, str) else data)]
+    if not opts["data"]:
+        raise UserError("no data folders: give them on the command line or as [train] data in --config")
+    if opts.get("out") is None and not args.print_config:
+        raise UserError("no run folder: give --out (or [train] out in --config)")
+    opts["out"] = None if opts.get("out") is None else Path(opts["out"])
+    return opts, trainer
+
+
+def _run_train(args) -> int:
+    from signlane.commands.trainer_flags import as_toml
+    from signlane.fileio import atomic_write_text
+    opts, trainer = _train_options(args)
+    resolved = {k: [str(d.resolve()) for d in v] if k == "data" else (str(v.resolve()) if isinstance(v, Path) else v)
+                for k, v in opts.items() if k != "resume"}
+    if args.print_config:
+        print(as_toml(resolved, trainer), end="")
+        return 0
+    try:
         from signlane_train.lanes import train_lanes
         from signlane_train.signs import train_signs
     except ImportError as e:
         raise UserError(f"training needs the train extra (pip install 'signlane[train]'): {e}") from None
-    shared = dict(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr, width=args.width,
-                  patience=args.patience, seed=args.seed, resume=args.resume, workers=args.workers,
-                  threads=args.threads, deterministic=args.deterministic,
-                  scale=ScaleOut(args.accelerator, args.devices, args.num_nodes, args.strategy))
+    shared = {k: opts[k] for k in ("epochs", "batch_size", "lr", "width", "patience", "seed", "resume", "workers",
+                                   "threads", "deterministic")}
     if args.kind == "lanes":
-        train, own = train_lanes, dict(pos_weight=args.pos_weight)
+        train, own = train_lanes, dict(pos_weight=opts["pos_weight"])
     else:
-        train, own = train_signs, dict(size=args.size, class_weights=args.class_weights, augment=args.augment)
+        train, own = train_signs, dict(size=opts["size"], class_weights=opts["class_weights"], augment=opts["augment"])
+    opts["out"].mkdir(parents=True, exist_ok=True)
+    atomic_write_text(opts["out"] / "train.toml", as_toml(resolved, trainer))  # this run, as a --config
     try:
-        report = train(args.data, args.out, **shared, **own)
+        report = train(opts["data"], opts["out"], trainer_args=trainer, **shared, **own)
     except ValueError as e:
         raise UserError(str(e)) from None
     report.pop("confusion", None)  # a matrix: confusion.png shows it
