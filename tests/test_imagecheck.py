@@ -261,3 +261,17 @@ def test_decode_image_gives_an_image_or_a_protocol_error(image):
     except ProtocolError:
         return
     assert img.dtype == np.uint8 and img.ndim == 3 and img.shape[2] == 3 and min(img.shape[:2]) >= 16
+
+
+def test_progressive_scan_damage_is_refused_now_that_libjpeg_reads_the_codes(road):
+    """Progressive JPEGs used to get the marker checks only: damage in their scans that libjpeg
+    warns about is refused as well, and a clean one passes."""
+    good = jpeg(road, 85, progressive=1)
+    ic.check_jpeg(good)
+    files = [corrupt(good, seed=300 + k, n=12, at=0.2 + 0.06 * k) for k in range(10)]
+    warned = [any(w in text for w in LIBJPEG_WARNS) for text in libjpeg_warnings(files)]
+    assert sum(warned) >= 3
+    for f, w in zip(files, warned):
+        if w:
+            with pytest.raises(ic.ImageCheckError, match="corrupt JPEG data"):
+                ic.check_jpeg(f)
