@@ -174,7 +174,7 @@ class Driver:
                 view = with_road_end(view, road.scan)
         t2 = time.perf_counter()
         timing["junction"] = (t2 - t1) * 1e3
-        signs = self._signs(image, pose)
+        signs = self._signs(image, pose, small)
         t3 = time.perf_counter()
         timing["signs"] = (t3 - t2) * 1e3
         if self.signs is not None and self._worker is None:  # its parts (in the worker: another thread's)
@@ -194,12 +194,12 @@ class Driver:
         self.seq += 1
         return Perception(frame, lane, signs, timing), Command(steering, throttle, state)
 
-    def _signs(self, image: np.ndarray, pose: OdoPose) -> tuple[SignDetection, ...]:
+    def _signs(self, image: np.ndarray, pose: OdoPose, small: np.ndarray) -> tuple[SignDetection, ...]:
         if self.signs is None:
             return ()
         if self._worker is None:
-            try:
-                found, confirmed = self.signs.step(image)
+            try:  # the lane copy is the proposals' half-size frame when it is half the frame's size
+                found, confirmed = self.signs.step(image, small)
             except Exception as e:
                 raise _stage_failure(e) from e
             at = pose
