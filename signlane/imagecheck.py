@@ -375,7 +375,10 @@ def _whole_bytes_used(data: bytes, start: int, end: int) -> None:
 
 
 def _decode_eighth(data: bytes) -> None:
-    simplejpeg.decode_jpeg(data, colorspace="GRAY", min_factor=8, min_width=1, min_height=1, strict=True)
+    # grey output needs only the luma's inverse DCT; libjpeg turns CMYK and YCCK into CMYK only
+    kind = simplejpeg.decode_jpeg_header(data)[2]
+    out = "CMYK" if kind in ("CMYK", "YCCK") else "GRAY"
+    simplejpeg.decode_jpeg(data, colorspace=out, min_factor=8, min_width=1, min_height=1, strict=True)
 
 
 def _entropy_check(data: bytes, scans: list[int]) -> None:

@@ -275,3 +275,17 @@ def test_progressive_scan_damage_is_refused_now_that_libjpeg_reads_the_codes(roa
         if w:
             with pytest.raises(ic.ImageCheckError, match="corrupt JPEG data"):
                 ic.check_jpeg(f)
+
+
+def test_cmyk_and_greyscale_jpegs_pass_the_libjpeg_read():
+    """libjpeg gives CMYK files only as CMYK: the check must ask for that, not refuse them."""
+    import io
+
+    from PIL import Image
+    arr = np.random.default_rng(2).integers(0, 256, (40, 56, 4), dtype=np.uint8)
+    for mode, pixels in (("CMYK", arr), ("RGB", arr[:, :, :3]), ("L", arr[:, :, 0])):
+        buf = io.BytesIO()
+        Image.fromarray(pixels, mode).save(buf, "JPEG", quality=80)
+        data = buf.getvalue()
+        ic.check_jpeg(data)
+        assert ic.decode(data).shape == (40, 56, 3), mode
