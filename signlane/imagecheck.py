@@ -85,7 +85,12 @@ def decode(data: bytes, max_pixels: int = DEFAULT_MAX_PIXELS, flags: int = cv2.I
     header is unreadable, the image has more than `max_pixels` pixels, the data is corrupt or
     OpenCV cannot decode it."""
     check_pixels(*header_size(data), max_pixels)
-    check_integrity(data)
+    if image_format(data) == "jpeg" and flags == cv2.IMREAD_COLOR:
+        img = check_jpeg(data, bgr=True)  # libjpeg's checked read is the picture, when it can be
+        if img is not None:
+            return img
+    else:
+        check_integrity(data)
     try:
         img = cv2.imdecode(np.frombuffer(data, np.uint8), flags)
     except cv2.error:  # some damaged headers make OpenCV raise instead of returning None
@@ -300,35 +305,41 @@ def _scan_end(data: bytes, i: int) -> tuple[int, list[tuple[int, int]]]:
             return j, rst
 
 
-def check_jpeg(data: bytes) -> None:
+def check_jpeg(data: bytes, bgr: bool = False) -> np.ndarray | None:
     """Markers in order, a frame header before the first scan, an end-of-image marker, restart
     markers in sequence (sequential Huffman JPEGs: what cameras and simulators send); every code of
     every scan as libjpeg reads it (anything it would warn about); no whole byte of junk after a
-    sequential JPEG's last code. ImageCheckError names the first problem."""
+    sequential JPEG's last code. ImageCheckError names the first problem.
+
+    With bgr=True libjpeg's read is a whole decode, returned as uint8 (H, W, 3) BGR, the pixels
+    cv2.imdecode gives (one libjpeg-turbo, its default IDCT and upsampling), where that decode is
+    cv2.imdecode's: not for CMYK files, nor for files with EXIF data (OpenCV turns the picture by
+    its orientation tag). Else None, as without it."""
     try:
-        _check_jpeg(data)
+        return _check_jpeg(data, bgr)
     except (struct.error, IndexError):  # a segment shorter than the fields it must hold
         raise ImageCheckError("corrupt JPEG data (a header segment is shorter than its fields)") from None
 
 
-def _check_jpeg(data: bytes) -> None:
+def _check_jpeg(data: bytes, bgr: bool) -> np.ndarray | None:
     scans: list[int] = []
     ends: list[int] = []
     try:
-        sequential = _check_markers(data, scans, ends)
+        sequential, exif = _check_markers(data, scans, ends)
     except ImageCheckError:
         if scans:  # damage inside a scan's data (a stray 0xFF, lost bytes) reads as a marker problem
-            _entropy_check(data, scans)  # after it: libjpeg's words for it come first
+            _entropy_check(data, scans, False)  # after it: libjpeg's words for it come first
         raise
-    _entropy_check(data, scans)
+    img = _entropy_check(data, scans, bgr and not exif)
     if sequential:
         _whole_bytes_used(data, scans[-1], ends[-1])
+    return img
 
 
-def _check_markers(data: bytes, scans: list[int], ends: list[int]) -> bool:
+def _check_markers(data: bytes, scans: list[int], ends: list[int]) -> tuple[bool, bool]:
     """The marker walk; appends where each scan's data starts to `scans` and where it ends to
-    `ends`. True for a sequential Huffman JPEG."""
-    frame, dc, ac, restart = None, {}, {}, 0
+    `ends`. Returns (a sequential Huffman JPEG?, has EXIF data?)."""
+    frame, dc, ac, restart, exif = None, {}, {}, 0, False
     i = 2
     while True:
         marker, a, b = _next_segment(data, i)
@@ -337,6 +348,8 @@ def _check_markers(data: bytes, scans: list[int], ends: list[int]) -> bool:
             frame = _parse_sof(marker, seg)
         elif marker == 0xC4:
             _parse_dht(seg, dc, ac)
+        elif marker == 0xE1 and seg.startswith(b"Exif"):
+            exif = True
         elif marker == 0xDD:
             if len(seg) != 2:
                 raise ImageCheckError("corrupt JPEG restart interval (DRI)")
@@ -353,7 +366,7 @@ def _check_markers(data: bytes, scans: list[int], ends: list[int]) -> bool:
         elif marker == 0xD9:
             if not scans:
                 raise ImageCheckError("JPEG ends before its first scan (no image data)")
-            return frame.marker in SEQUENTIAL_HUFFMAN
+            return frame.marker in SEQUENTIAL_HUFFMAN, exif
 
 
 _EXTRANEOUS = re.compile(r"(\d+) extraneous bytes before marker 0x([0-9a-f]{2})")
@@ -374,21 +387,27 @@ def _whole_bytes_used(data: bytes, start: int, end: int) -> None:
     raise ImageCheckError(f"corrupt JPEG data (at least 1 extraneous bytes in the scan at byte {start})")
 
 
-def _decode_eighth(data: bytes) -> None:
-    # grey output needs only the luma's inverse DCT; libjpeg turns CMYK and YCCK into CMYK only
+def _decode_eighth(data: bytes, bgr: bool = False) -> np.ndarray | None:
+    """libjpeg's strict read (a warning raises ValueError): the whole picture in BGR when `bgr`
+    and the file is not CMYK or YCCK, else at 1/8 scale, read and dropped."""
     kind = simplejpeg.decode_jpeg_header(data)[2]
-    out = "CMYK" if kind in ("CMYK", "YCCK") else "GRAY"
-    simplejpeg.decode_jpeg(data, colorspace=out, min_factor=8, min_width=1, min_height=1, strict=True)
+    cmyk = kind in ("CMYK", "YCCK")  # libjpeg gives these as CMYK only
+    if bgr and not cmyk:
+        return simplejpeg.decode_jpeg(data, colorspace="BGR", strict=True)
+    # grey output needs only the luma's inverse DCT
+    simplejpeg.decode_jpeg(data, colorspace="CMYK" if cmyk else "GRAY", min_factor=8, min_width=1, min_height=1,
+                           strict=True)
+    return None
 
 
-def _entropy_check(data: bytes, scans: list[int]) -> None:
+def _entropy_check(data: bytes, scans: list[int], bgr: bool) -> np.ndarray | None:
     """Every Huffman (or arithmetic) code of every scan, read by libjpeg itself: a decode at
     1/8 scale (libjpeg-turbo's DCT scaling: the entropy decoder reads every code, the inverse DCT
     makes one pixel a block) in which a libjpeg warning is an error, so what libjpeg would
     warn about on stderr is refused here and libjpeg's stderr stays quiet. `scans`: the byte
-    offsets of the scans' data, to say where."""
+    offsets of the scans' data, to say where. With bgr, the whole decode (see _decode_eighth)."""
     try:
-        _decode_eighth(data)
+        return _decode_eighth(data, bgr)
     except ValueError as e:
         text = str(e).strip().splitlines()[0] if str(e).strip() else "undecodable"
         m = _EXTRANEOUS.search(text)

@@ -289,3 +289,26 @@ def test_cmyk_and_greyscale_jpegs_pass_the_libjpeg_read():
         data = buf.getvalue()
         ic.check_jpeg(data)
         assert ic.decode(data).shape == (40, 56, 3), mode
+
+
+def test_the_checked_read_is_opencvs_picture(road):
+    """decode() returns libjpeg's checked read of a JPEG: pixel for pixel what cv2.imdecode gives
+    (subsampling, progressive, grey); a file with an EXIF orientation is OpenCV's, turned."""
+    import io
+
+    from PIL import Image
+    for src in (road, cv2.cvtColor(road, cv2.COLOR_BGR2GRAY)):
+        for flags in ({}, {"sampling_factor": cv2.IMWRITE_JPEG_SAMPLING_FACTOR_420}, {"progressive": 1},
+                      {"sampling_factor": cv2.IMWRITE_JPEG_SAMPLING_FACTOR_422, "rst_interval": 3}):
+            if src.ndim == 2 and "sampling_factor" in flags:
+                continue
+            data = jpeg(src, 75, **flags)
+            assert ic.check_jpeg(data, bgr=True) is not None
+            assert np.array_equal(ic.decode(data), cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR))
+    exif = Image.Exif()
+    exif[0x0112] = 6  # orientation: turned 90 degrees
+    buf = io.BytesIO()
+    Image.fromarray(road[:, :, ::-1]).save(buf, "JPEG", quality=80, exif=exif.tobytes())
+    data = buf.getvalue()
+    assert ic.check_jpeg(data, bgr=True) is None
+    assert ic.decode(data).shape == (320, 240, 3)  # OpenCV applied the tag
