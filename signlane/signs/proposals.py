@@ -28,7 +28,7 @@ from dataclasses import dataclass, replace
 import cv2
 import numpy as np
 
-from signlane.signs import roi
+from signlane.signs import roi as sign_roi
 from signlane.types import SignDetection
 
 HueRange = tuple[int, int]
@@ -73,7 +73,7 @@ class ProposalParams:
     max_proposals: int = 8  # 0 = no cap
     pad_frac: float = 0.03  # grow each box by this fraction of its size on every side
     shape_score: bool = True  # False: every proposal scores 1.0
-    regions: bool = True  # search only where a half-size copy shows sign colours (signs/roi.py); False: everywhere
+    regions: bool = True  # coarse to fine: full resolution only around what a half-size pass finds; False: everywhere
 
     @classmethod
     def published(cls) -> "ProposalParams":
@@ -491,14 +491,15 @@ def _search_regions(img: np.ndarray, params: ProposalParams, small: np.ndarray |
     around each (signs/roi.py makes blurred HSV for the windows only) and gives the boxes. The
     frame's thresholds come from a sparse sample of the full-resolution frame, for both."""
     H, W = img.shape[:2]
-    scales = _scales_of(roi.sparse_blurred_hsv(img, SPARSE, params.blur_px), params)
+    scales = _scales_of(sign_roi.sparse_blurred_hsv(img, SPARSE, params.blur_px), params)
     specs = _color_specs(params, img, scales)
     if small is None:
         small = cv2.resize(img, (max(1, W // 2), max(1, H // 2)), interpolation=cv2.INTER_AREA)
     small_hsv = cv2.cvtColor(small, cv2.COLOR_BGR2HSV)
     # the coarse pass only says where to look: it keeps smaller and less sign-like blobs than the
     # full-resolution search will (a small sign's outline is ragged at half size)
-    loose = replace(params, min_score=COARSE_MIN_SCORE * params.min_score, min_size_frac=COARSE_SIZE * params.min_size_frac)
+    loose = replace(params, min_score=COARSE_MIN_SCORE * params.min_score,
+                    min_size_frac=COARSE_SIZE * params.min_size_frac)
     # and paler ones: averaging 2x2 pixels halves a thin ring's saturation against a white face
     pale = [(c, hues, int(COARSE_S * s_min), v_min) for c, hues, s_min, v_min in specs]
     coarse = _search_frame(small_hsv, _make_ctx(small_hsv, loose, scales[1]), pale,
@@ -507,7 +508,8 @@ def _search_regions(img: np.ndarray, params: ProposalParams, small: np.ndarray |
         return []
     hsv = np.zeros((H, W, 3), np.uint8)
     ctx = _make_ctx(hsv, params, scales[1])
-    windows = roi.windows([b.box for b in coarse], (W / small.shape[1], H / small.shape[0]), (W, H), ctx.min_size)
+    scale = (W / small.shape[1], H / small.shape[0])
+    windows = sign_roi.windows([b.box for b in coarse], scale, (W, H), ctx.min_size)
     for box in windows:
-        roi.blurred_hsv(img, box, params.blur_px, hsv)
+        sign_roi.blurred_hsv(img, box, params.blur_px, hsv)
     return _search_frame(hsv, ctx, specs, windows)
