@@ -4,18 +4,21 @@ the integrity of JPEG and PNG data.
 OpenCV decodes whatever it is given: a 3 MB JPEG of 12000x12000 px becomes a 430 MB array (and
 gigabytes while decoding), and a JPEG whose entropy-coded data is corrupt decodes to a smeared
 picture with only a libjpeg warning on stderr. `decode` reads the size from the header without
-decoding, refuses images over `max_pixels`, checks the data (JPEG: markers and every Huffman code
-of a sequential scan, as the decoder would read them; PNG: every chunk's CRC) and only then decodes.
+decoding, refuses images over `max_pixels`, checks the data (JPEG: markers, then every code of every
+scan read by libjpeg-turbo itself in a 1/8-scale decode whose warnings are errors, plus a check that
+a sequential scan's last byte holds code; PNG: every chunk's CRC) and only then decodes.
 Problems raise `ImageCheckError` with one line saying what is wrong (callers add which input).
 """
 from __future__ import annotations
 
+import re
 import struct
 import zlib
 from functools import lru_cache
 
 import cv2
 import numpy as np
+import simplejpeg
 
 DEFAULT_MAX_PIXELS = 4096 * 4096
 
@@ -82,7 +85,12 @@ def decode(data: bytes, max_pixels: int = DEFAULT_MAX_PIXELS, flags: int = cv2.I
     header is unreadable, the image has more than `max_pixels` pixels, the data is corrupt or
     OpenCV cannot decode it."""
     check_pixels(*header_size(data), max_pixels)
-    check_integrity(data)
+    if image_format(data) == "jpeg" and flags == cv2.IMREAD_COLOR:
+        img = check_jpeg(data, bgr=True)  # libjpeg's checked read is the picture, when it can be
+        if img is not None:
+            return img
+    else:
+        check_integrity(data)
     try:
         img = cv2.imdecode(np.frombuffer(data, np.uint8), flags)
     except cv2.error:  # some damaged headers make OpenCV raise instead of returning None
@@ -172,8 +180,7 @@ def _webp_size(data: bytes) -> tuple[int, int]:
 
 # ------------------------------------------------------------------------------------ JPEG
 SOF_MARKERS = {0xC0, 0xC1, 0xC2, 0xC3, 0xC5, 0xC6, 0xC7, 0xC9, 0xCA, 0xCB, 0xCD, 0xCE, 0xCF}
-SEQUENTIAL_HUFFMAN = {0xC0, 0xC1}  # baseline and extended sequential: their scans are checked bit by bit
-_BAD = 1 << 23  # table entry for a bit pattern that is no code: jumps past any data, caught as an overrun
+SEQUENTIAL_HUFFMAN = {0xC0, 0xC1}  # baseline and extended sequential: restart markers and trailing bytes checked
 
 
 class _Frame:
@@ -239,29 +246,19 @@ def _jpeg_frame(data: bytes) -> _Frame:
 
 
 @lru_cache(maxsize=16)  # cameras use the same few tables on every frame
-def _huffman_table(spec: bytes, ac: bool) -> np.ndarray:
-    """DHT table (16 counts + symbols) -> int32 lookup by the next 16 bits of the stream: the bits
-    the symbol and its extra bits take, plus (AC) the coefficient step in bits 24+ (0: end of block)."""
+def _huffman_table(spec: bytes, ac: bool) -> bytes:
+    """A DHT table (16 counts + symbols), checked: no more codes of a length than its bits allow,
+    DC sizes up to 16. The codes themselves are read by libjpeg (see `_entropy_check`)."""
     counts, symbols = spec[:16], spec[16:]
-    table = np.full(1 << 16, _BAD, np.int32)
     code, k = 0, 0
     for length in range(1, 17):
         for _ in range(counts[length - 1]):
-            sym = symbols[k]
-            k += 1
-            extra = sym & 15 if ac else sym
-            if ac:
-                run = sym >> 4
-                step = 0 if extra == 0 and run != 15 else (16 if extra == 0 else run + 1)
-            else:
-                step = 0
-            if code >= 1 << length or (not ac and sym > 16):
+            if code >= 1 << length or (not ac and symbols[k] > 16):
                 raise ImageCheckError("corrupt JPEG Huffman table (DHT): more codes than bits, or a bad DC size")
-            lo = code << (16 - length)
-            table[lo:lo + (1 << (16 - length))] = length + extra + (step << 24)
+            k += 1
             code += 1
         code <<= 1
-    return table
+    return spec
 
 
 class _Scan:
@@ -308,98 +305,41 @@ def _scan_end(data: bytes, i: int) -> tuple[int, list[tuple[int, int]]]:
             return j, rst
 
 
-def _bit_windows(chunk: bytes) -> np.ndarray:
-    """The 16 bits starting at every bit position of (unstuffed) entropy-coded bytes, as int64
-    indices; the last positions see 1-bits beyond the end (the padding an encoder uses)."""
-    b = np.frombuffer(chunk + b"\xff\xff", np.uint8).astype(np.int64)
-    w = (b[:-2] << 16) | (b[1:-1] << 8) | b[2:]
-    shifts = np.arange(8, 0, -1, dtype=np.int64)
-    return ((w[:, None] >> shifts) & 0xFFFF).reshape(-1)
+def check_jpeg(data: bytes, bgr: bool = False) -> np.ndarray | None:
+    """Markers in order, a frame header before the first scan, an end-of-image marker, restart
+    markers in sequence (sequential Huffman JPEGs: what cameras and simulators send); every code of
+    every scan as libjpeg reads it (anything it would warn about); no whole byte of junk after a
+    sequential JPEG's last code. ImageCheckError names the first problem.
 
-
-WINDOW_BYTES = 1 << 16  # the codes are looked up for this many bytes at a time (memory stays small)
-MCU_MAX_BYTES = 4096  # more than the codes of one MCU can take (10 blocks of at most 64 codes of 31 bits)
-
-
-class _Bits:
-    """Per-position lookups of a scan's Huffman tables over a window of its bytes."""
-
-    def __init__(self, chunk: bytes, tables: list[np.ndarray]):
-        self.chunk, self.tables = chunk, tables
-        self.nbits = 8 * len(chunk)
-
-    def window(self, pos: int) -> tuple[int, int, list[memoryview]]:
-        """(bit offset of the window, bits it covers before a reload, lookups per table)."""
-        first = pos >> 3
-        sub = self.chunk[first:first + WINDOW_BYTES + MCU_MAX_BYTES]
-        bits = _bit_windows(sub)
-        limit = 8 * WINDOW_BYTES if first + len(sub) < len(self.chunk) else 1 << 62
-        return 8 * first, limit, [memoryview(t[bits]) for t in self.tables]
-
-
-def _check_codes(chunk: bytes, starts: list[int], scan: _Scan, restart: int, where: int) -> None:
-    """Decode the Huffman codes of a scan's MCUs from its bytes (stuffing and restart markers
-    removed; restart interval k starts at byte starts[k]) and require that every interval uses
-    its bytes exactly, as libjpeg does without a warning."""
-    tables = list({id(t): t for pair in scan.blocks for t in pair}.values())
-    index = {id(t): k for k, t in enumerate(tables)}
-    order = [(index[id(dc)], index[id(ac)]) for dc, ac in scan.blocks]
-    bits = _Bits(chunk, tables)
-    offset, limit, looks = bits.window(0)
-    blocks = [(looks[d], looks[a]) for d, a in order]
-    ends = [8 * b for b in starts[1:]] + [bits.nbits]
-    pos = 0  # bit position relative to the window
-    for k, end in enumerate(ends):
-        n = min(restart, scan.mcus - k * restart) if restart else scan.mcus
-        if k:  # a restart interval starts on its own byte
-            pos = 8 * starts[k] - offset
-        try:
-            for _ in range(n):
-                if pos > limit:
-                    if pos >= _BAD >> 1:  # a bad code ended the last MCU
-                        break
-                    absolute = offset + pos
-                    offset, limit, looks = bits.window(absolute)
-                    pos = absolute - offset
-                    blocks = [(looks[d], looks[a]) for d, a in order]
-                for dc, ac in blocks:
-                    pos += dc[pos]
-                    c = 1
-                    while c < 64:
-                        e = ac[pos]
-                        pos += e & 0xFFFFFF
-                        step = e >> 24
-                        if not step:
-                            break
-                        c += step
-                    if c > 64:
-                        raise ImageCheckError(f"corrupt JPEG data (a block's coefficients run past 64 in the scan "
-                                              f"at byte {where})")
-        except IndexError:  # past the data, or (a huge jump) a bad code
-            pos = max(pos, bits.nbits + 8 - offset)
-        if pos >= _BAD >> 1:
-            raise ImageCheckError(f"corrupt JPEG data (bad Huffman code in the scan at byte {where})")
-        used = offset + pos
-        if used > end:
-            raise ImageCheckError(f"corrupt JPEG data (the scan at byte {where} needs more data than it holds: a "
-                                  "corrupt or truncated entropy-coded segment)")
-        if end - used >= 8:
-            raise ImageCheckError(f"corrupt JPEG data ({(end - used) // 8} extraneous bytes in the scan at byte "
-                                  f"{where})")
-
-
-def check_jpeg(data: bytes) -> None:
-    """Markers in order, a frame header before the first scan, an end-of-image marker; for
-    sequential Huffman JPEGs (what cameras and simulators send) every code of every scan, with
-    restart markers in sequence. ImageCheckError names the first problem."""
+    With bgr=True libjpeg's read is a whole decode, returned as uint8 (H, W, 3) BGR, the pixels
+    cv2.imdecode gives (one libjpeg-turbo, its default IDCT and upsampling), where that decode is
+    cv2.imdecode's: not for CMYK files, nor for files with EXIF data (OpenCV turns the picture by
+    its orientation tag). Else None, as without it."""
     try:
-        _check_jpeg(data)
+        return _check_jpeg(data, bgr)
     except (struct.error, IndexError):  # a segment shorter than the fields it must hold
         raise ImageCheckError("corrupt JPEG data (a header segment is shorter than its fields)") from None
 
 
-def _check_jpeg(data: bytes) -> None:
-    frame, dc, ac, restart, scans = None, {}, {}, 0, 0
+def _check_jpeg(data: bytes, bgr: bool) -> np.ndarray | None:
+    scans: list[int] = []
+    ends: list[int] = []
+    try:
+        sequential, exif = _check_markers(data, scans, ends)
+    except ImageCheckError:
+        if scans:  # damage inside a scan's data (a stray 0xFF, lost bytes) reads as a marker problem
+            _entropy_check(data, scans, False)  # after it: libjpeg's words for it come first
+        raise
+    img = _entropy_check(data, scans, bgr and not exif)
+    if sequential:
+        _whole_bytes_used(data, scans[-1], ends[-1])
+    return img
+
+
+def _check_markers(data: bytes, scans: list[int], ends: list[int]) -> tuple[bool, bool]:
+    """The marker walk; appends where each scan's data starts to `scans` and where it ends to
+    `ends`. Returns (a sequential Huffman JPEG?, has EXIF data?)."""
+    frame, dc, ac, restart, exif = None, {}, {}, 0, False
     i = 2
     while True:
         marker, a, b = _next_segment(data, i)
@@ -408,6 +348,8 @@ def _check_jpeg(data: bytes) -> None:
             frame = _parse_sof(marker, seg)
         elif marker == 0xC4:
             _parse_dht(seg, dc, ac)
+        elif marker == 0xE1 and seg.startswith(b"Exif"):
+            exif = True
         elif marker == 0xDD:
             if len(seg) != 2:
                 raise ImageCheckError("corrupt JPEG restart interval (DRI)")
@@ -418,12 +360,63 @@ def _check_jpeg(data: bytes) -> None:
             end, rst = _scan_end(data, b)
             if frame.marker in SEQUENTIAL_HUFFMAN:
                 _check_scan(data, b, end, rst, _Scan(frame, seg, dc, ac), restart)
-            scans += 1
+            scans.append(b)
+            ends.append(end)
             i = end
         elif marker == 0xD9:
-            if scans == 0:
+            if not scans:
                 raise ImageCheckError("JPEG ends before its first scan (no image data)")
-            return
+            return frame.marker in SEQUENTIAL_HUFFMAN, exif
+
+
+_EXTRANEOUS = re.compile(r"(\d+) extraneous bytes before marker 0x([0-9a-f]{2})")
+
+
+def _whole_bytes_used(data: bytes, start: int, end: int) -> None:
+    """Does the last scan use its data up to its last byte? libjpeg reads a few bytes ahead, so
+    a few bytes of junk before the end-of-image marker escape its count of extraneous bytes.
+    Without its last byte, a scan that needs that byte's bits makes libjpeg run out of data
+    (it warns only when a code needs bits past the end); if libjpeg does not, that byte (and
+    any after it) held no code: extraneous data."""
+    if end - start < 2:
+        return
+    try:
+        _decode_eighth(data[:end - 1] + data[end:])
+    except ValueError:
+        return
+    raise ImageCheckError(f"corrupt JPEG data (at least 1 extraneous bytes in the scan at byte {start})")
+
+
+def _decode_eighth(data: bytes, bgr: bool = False) -> np.ndarray | None:
+    """libjpeg's strict read (a warning raises ValueError): the whole picture in BGR when `bgr`
+    and the file is not CMYK or YCCK, else at 1/8 scale, read and dropped."""
+    kind = simplejpeg.decode_jpeg_header(data)[2]
+    cmyk = kind in ("CMYK", "YCCK")  # libjpeg gives these as CMYK only
+    if bgr and not cmyk:
+        return simplejpeg.decode_jpeg(data, colorspace="BGR", strict=True)
+    # grey output needs only the luma's inverse DCT
+    simplejpeg.decode_jpeg(data, colorspace="CMYK" if cmyk else "GRAY", min_factor=8, min_width=1, min_height=1,
+                           strict=True)
+    return None
+
+
+def _entropy_check(data: bytes, scans: list[int], bgr: bool) -> np.ndarray | None:
+    """Every Huffman (or arithmetic) code of every scan, read by libjpeg itself: a decode at
+    1/8 scale (libjpeg-turbo's DCT scaling: the entropy decoder reads every code, the inverse DCT
+    makes one pixel a block) in which a libjpeg warning is an error, so what libjpeg would
+    warn about on stderr is refused here and libjpeg's stderr stays quiet. `scans`: the byte
+    offsets of the scans' data, to say where. With bgr, the whole decode (see _decode_eighth)."""
+    try:
+        return _decode_eighth(data, bgr)
+    except ValueError as e:
+        text = str(e).strip().splitlines()[0] if str(e).strip() else "undecodable"
+        m = _EXTRANEOUS.search(text)
+        if m:  # the data a scan's last block leaves over before the next marker
+            at = scans[-1] if m[2] == "d9" else scans[0]
+            raise ImageCheckError(f"corrupt JPEG data ({m[1]} extraneous bytes in the scan at byte {at})") from None
+        if text.lower().startswith("corrupt jpeg data: "):
+            text = text[len("corrupt jpeg data: "):]
+        raise ImageCheckError(f"corrupt JPEG data ({text[:120]}, in the scan at byte {scans[0]})") from None
 
 
 def _parse_dht(seg: bytes, dc: dict, ac: dict) -> None:
@@ -447,14 +440,7 @@ def _check_scan(data: bytes, start: int, end: int, rst: list[tuple[int, int]], s
     if len(rst) != intervals - 1:
         raise ImageCheckError(f"corrupt JPEG data (the scan at byte {start} has {len(rst)} restart markers, "
                               f"expected {intervals - 1})")
-    bounds = [start] + [j for j, _ in rst] + [end]
-    parts, starts, size = [], [], 0
-    for k in range(intervals):
-        if k and rst[k - 1][1] != (k - 1) % 8:
+    for k in range(1, intervals):
+        if rst[k - 1][1] != (k - 1) % 8:
             raise ImageCheckError(f"corrupt JPEG data (restart marker {rst[k - 1][1]} out of sequence at byte "
                                   f"{rst[k - 1][0]})")
-        part = data[bounds[k] + (2 if k else 0):bounds[k + 1]].replace(b"\xff\x00", b"\xff")
-        parts.append(part)
-        starts.append(size)
-        size += len(part)
-    _check_codes(b"".join(parts), starts, scan, restart, start)

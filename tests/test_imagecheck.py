@@ -261,3 +261,54 @@ def test_decode_image_gives_an_image_or_a_protocol_error(image):
     except ProtocolError:
         return
     assert img.dtype == np.uint8 and img.ndim == 3 and img.shape[2] == 3 and min(img.shape[:2]) >= 16
+
+
+def test_progressive_scan_damage_is_refused_now_that_libjpeg_reads_the_codes(road):
+    """Progressive JPEGs used to get the marker checks only: damage in their scans that libjpeg
+    warns about is refused as well, and a clean one passes."""
+    good = jpeg(road, 85, progressive=1)
+    ic.check_jpeg(good)
+    files = [corrupt(good, seed=300 + k, n=12, at=0.2 + 0.06 * k) for k in range(10)]
+    warned = [any(w in text for w in LIBJPEG_WARNS) for text in libjpeg_warnings(files)]
+    assert sum(warned) >= 3
+    for f, w in zip(files, warned):
+        if w:
+            with pytest.raises(ic.ImageCheckError, match="corrupt JPEG data"):
+                ic.check_jpeg(f)
+
+
+def test_cmyk_and_greyscale_jpegs_pass_the_libjpeg_read():
+    """libjpeg gives CMYK files only as CMYK: the check must ask for that, not refuse them."""
+    import io
+
+    from PIL import Image
+    arr = np.random.default_rng(2).integers(0, 256, (40, 56, 4), dtype=np.uint8)
+    for mode, pixels in (("CMYK", arr), ("RGB", arr[:, :, :3]), ("L", arr[:, :, 0])):
+        buf = io.BytesIO()
+        Image.fromarray(pixels, mode).save(buf, "JPEG", quality=80)
+        data = buf.getvalue()
+        ic.check_jpeg(data)
+        assert ic.decode(data).shape == (40, 56, 3), mode
+
+
+def test_the_checked_read_is_opencvs_picture(road):
+    """decode() returns libjpeg's checked read of a JPEG: pixel for pixel what cv2.imdecode gives
+    (subsampling, progressive, grey); a file with an EXIF orientation is OpenCV's, turned."""
+    import io
+
+    from PIL import Image
+    for src in (road, cv2.cvtColor(road, cv2.COLOR_BGR2GRAY)):
+        for flags in ({}, {"sampling_factor": cv2.IMWRITE_JPEG_SAMPLING_FACTOR_420}, {"progressive": 1},
+                      {"sampling_factor": cv2.IMWRITE_JPEG_SAMPLING_FACTOR_422, "rst_interval": 3}):
+            if src.ndim == 2 and "sampling_factor" in flags:
+                continue
+            data = jpeg(src, 75, **flags)
+            assert ic.check_jpeg(data, bgr=True) is not None
+            assert np.array_equal(ic.decode(data), cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR))
+    exif = Image.Exif()
+    exif[0x0112] = 6  # orientation: turned 90 degrees
+    buf = io.BytesIO()
+    Image.fromarray(road[:, :, ::-1]).save(buf, "JPEG", quality=80, exif=exif.tobytes())
+    data = buf.getvalue()
+    assert ic.check_jpeg(data, bgr=True) is None
+    assert ic.decode(data).shape == (320, 240, 3)  # OpenCV applied the tag

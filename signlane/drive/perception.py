@@ -82,14 +82,16 @@ class PerceptionStack:
                 view = with_road_end(view, road.scan)
         return view, two_lane
 
-    def signs_now(self, image: np.ndarray, pose=None) -> tuple[tuple[SignDetection, ...], list, object]:
+    def signs_now(self, image: np.ndarray, pose=None, small: np.ndarray | None = None
+                  ) -> tuple[tuple[SignDetection, ...], list, object]:
         """(found, confirmed, the pose they were seen at): in step with the frame, or the worker's
-        newest result (found empty and pose None when it has none yet). SignStageError on failure."""
+        newest result (found empty and pose None when it has none yet). SignStageError on failure.
+        small: the lane copy, which the proposals take as their half-size frame when it is one."""
         if self.signs is None:
             return (), [], None
         if self._worker is None:
             try:
-                found, confirmed = self.signs.step(image)
+                found, confirmed = self.signs.step(image, small)
             except Exception as e:
                 raise stage_failure(e) from e
             return tuple(found), list(confirmed), pose

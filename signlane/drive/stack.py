@@ -60,7 +60,7 @@ class DriveStack:
         view, two_lane = ps.junction_view(small, lane)
         t2 = time.perf_counter()
         timing["junction"] = (t2 - t1) * 1e3
-        signs = self._signs(image, pose)
+        signs = self._signs(image, pose, small)
         t3 = time.perf_counter()
         timing["signs"] = (t3 - t2) * 1e3
         timing.update(ps.sign_ms)
@@ -75,8 +75,8 @@ class DriveStack:
         self.seq += 1
         return Perception(frame, lane, signs, timing), Command(steering, throttle, state)
 
-    def _signs(self, image: np.ndarray, pose: OdoPose) -> tuple[SignDetection, ...]:
-        found, confirmed, at = self.perception.signs_now(image, pose)
+    def _signs(self, image: np.ndarray, pose: OdoPose, small: np.ndarray) -> tuple[SignDetection, ...]:
+        found, confirmed, at = self.perception.signs_now(image, pose, small)
         if at is None:
             return ()
         dc = self.config.drive

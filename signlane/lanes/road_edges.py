@@ -157,6 +157,13 @@ def scan_edges(road: np.ndarray, visible: np.ndarray, bev: BirdsEye, p: RoadEdge
     hist_r: list[float] = []
     misses = blind = 0
     stop = "view"
+    # every row's non-road columns (sorted) and first and last seen column, in one pass each:
+    # per-row numpy calls were most of the scan's cost
+    off_r, off_c = np.nonzero(~road)
+    bounds = np.searchsorted(off_r, np.arange(h + 1)).tolist()
+    any_seen = visible.any(axis=1).tolist()
+    first_seen = visible.argmax(axis=1).tolist()
+    last_seen = (w - 1 - visible[:, ::-1].argmax(axis=1)).tolist()
     for row in range(h - 1, -1, -1):
         line = road[row]
         c = int(round(centre))
@@ -171,9 +178,10 @@ def scan_edges(road: np.ndarray, visible: np.ndarray, bev: BirdsEye, p: RoadEdge
                 continue
             c = lo_c + int(near[np.argmin(np.abs(near - (c - lo_c)))])
         misses = 0
-        off = np.flatnonzero(~line)
-        left = int(off[off < c].max()) + 1 if np.any(off < c) else 0
-        right = int(off[off > c].min()) - 1 if np.any(off > c) else w - 1
+        off = off_c[bounds[row]:bounds[row + 1]]  # c is road, so it is not among them
+        j = int(np.searchsorted(off, c))
+        left = int(off[j - 1]) + 1 if j > 0 else 0
+        right = int(off[j]) - 1 if j < len(off) else w - 1
         # a run that ends where the view does (the road bends out of the frame) has no edge there
         seen_row = visible[row]
         ok_l = left > 1 and seen_row[left - 2] and _follows(hist_l, left, p.jump_m * k, p.step_m * k)
@@ -197,8 +205,8 @@ def scan_edges(road: np.ndarray, visible: np.ndarray, bev: BirdsEye, p: RoadEdge
         lo = left if ok_l else (right - width_m * k * slant_r if ok_r else (pl if pl is not None else centre - width_m * k / 2))
         hi = right if ok_r else (left + width_m * k * slant_l if ok_l else (pr if pr is not None else centre + width_m * k / 2))
         centre = 0.5 * (lo + hi)
-        seen = np.flatnonzero(visible[row])
-        out.append((row, left, right, ok_l, ok_r, lo, hi, seen[0] if len(seen) else c, seen[-1] if len(seen) else c))
+        seen = any_seen[row]
+        out.append((row, left, right, ok_l, ok_r, lo, hi, first_seen[row] if seen else c, last_seen[row] if seen else c))
     a = np.array(out, float).reshape(-1, 9)
     x0, y1 = bev.x_range_m[0], bev.y_range_m[1]
     to_x = lambda col: x0 + (col + 0.5) / k  # noqa: E731

@@ -13,7 +13,10 @@ Two variants share one code path, chosen by :class:`ProposalParams`:
   after a closing that joins a thin ring's broken arcs. Thresholds relax on dark and washed-out
   frames, dull tints (S * V small: bluish asphalt) are ignored, the minimum size scales with the
   frame, blobs are scored by shape (signs are discs and octagons; a blob cut by the frame edge by
-  a circle fit), and non-maximum suppression and a per-frame cap finish the list.
+  a circle fit), and non-maximum suppression and a per-frame cap finish the list. It runs coarse
+  to fine (``regions``): the same search on a half-size copy, with looser size, shape and
+  saturation floors, says where signs may be, and the full-resolution search runs in windows
+  around those places only (``signs/roi.py``); a sign both find has the same box.
 
 All images are ``uint8`` ``(H, W, 3)`` **BGR** (OpenCV order); boxes are ``(x, y, w, h)`` int
 image pixels, origin top-left. OpenCV's 8-bit hue runs 0..180 (degrees / 2).
@@ -25,10 +28,15 @@ from dataclasses import dataclass, replace
 import cv2
 import numpy as np
 
+from signlane.signs import roi as sign_roi
 from signlane.types import SignDetection
 
 HueRange = tuple[int, int]
 ColorSpec = tuple[str, tuple[HueRange, ...], int, int]  # colour, hue ranges, first S level, V minimum
+COARSE_MIN_SCORE = 0.5  # of min_score, for the half-size pass of the region search ...
+COARSE_SIZE = 0.75  # ... of min_size_frac ...
+COARSE_S = 0.6  # ... and of the first saturation level
+SPARSE = 8  # the frame-level percentiles look at every 8th row and column
 RING_GROW = 0.09  # a ring's width / its outer diameter, typical: the interior grows by this per side
 
 
@@ -65,6 +73,7 @@ class ProposalParams:
     max_proposals: int = 8  # 0 = no cap
     pad_frac: float = 0.03  # grow each box by this fraction of its size on every side
     shape_score: bool = True  # False: every proposal scores 1.0
+    regions: bool = True  # coarse to fine: full resolution only around what a half-size pass finds; False: everywhere
 
     @classmethod
     def published(cls) -> "ProposalParams":
@@ -74,7 +83,7 @@ class ProposalParams:
                    separate_colors=False, connectivity=4, close_px=0, adaptive=False, blur_px=0,
                    min_size=20, min_size_frac=0.0,
                    max_frac=0.8, max_aspect=2.0, border_aspect=2.0, min_score=0.0, nms_iou=0.0,
-                   max_proposals=0, pad_frac=0.0, shape_score=False)
+                   max_proposals=0, pad_frac=0.0, shape_score=False, regions=False)
 
 
 def _hue_mask(hsv: np.ndarray, hues: tuple[HueRange, ...], s_min: int, v_min: int) -> np.ndarray:
@@ -91,7 +100,14 @@ def _scales(hsv: np.ndarray, params: ProposalParams) -> tuple[float, float]:
     the first S level. Percentiles, so that one bright sky or one vivid wall does not decide."""
     if not params.adaptive or hsv.size == 0:
         return 1.0, 1.0
-    sparse = hsv[::8, ::8].reshape(-1, 3)
+    return _scales_of(hsv[::SPARSE, ::SPARSE], params)
+
+
+def _scales_of(sparse_hsv: np.ndarray, params: ProposalParams) -> tuple[float, float]:
+    """_scales from the HSV pixels at every SPARSE-th row and column."""
+    if not params.adaptive or sparse_hsv.size == 0:
+        return 1.0, 1.0
+    sparse = sparse_hsv.reshape(-1, 3)
     s95, v90 = np.percentile(sparse[:, 1], 95), np.percentile(sparse[:, 2], 90)
     return float(np.clip(s95 / params.washed_s, 0.5, 1.0)), float(np.clip(v90 / 200.0, 0.35, 1.0))
 
@@ -103,9 +119,10 @@ def _chroma_mask(hsv: np.ndarray, c_min: float) -> np.ndarray | None:
     return cv2.threshold(chroma, c_min - 1e-3, 255, cv2.THRESH_BINARY)[1]
 
 
-def _color_specs(params: ProposalParams, hsv: np.ndarray) -> tuple[ColorSpec, ColorSpec]:
-    """Red's and blue's thresholds, adapted to the frame."""
-    ks, kv = _scales(hsv, params)
+def _color_specs(params: ProposalParams, hsv: np.ndarray, scales: tuple[float, float] | None = None
+                 ) -> tuple[ColorSpec, ColorSpec]:
+    """Red's and blue's thresholds, adapted to the frame (by `scales`, else from hsv)."""
+    ks, kv = scales or _scales(hsv, params)
     return (("red", params.red_hue, int(params.red_s_min * ks), int(params.red_v_min * kv)),
             ("blue", params.blue_hue, int(params.blue_s_min * ks), int(params.blue_v_min * kv)))
 
@@ -206,14 +223,16 @@ class _Ctx:
     kernel: np.ndarray | None  # closing kernel, None = no closing
     ring_kernel: np.ndarray | None  # the wider one of the extra red pass
     hsv: np.ndarray  # the frame, for looking inside ring interiors
+    v_scale: float = 1.0  # the frame's V threshold factor (_scales), for the chroma floor
 
 
-def _make_ctx(hsv: np.ndarray, params: ProposalParams) -> _Ctx:
+def _make_ctx(hsv: np.ndarray, params: ProposalParams, v_scale: float | None = None) -> _Ctx:
     H, W = hsv.shape[:2]
+    v_scale = _scales(hsv, params)[1] if v_scale is None else v_scale
     min_size = params.min_size
     if params.min_size_frac > 0:  # scale with the frame, but never ask for more than min_size
         min_size = max(4, min(params.min_size, int(round(params.min_size_frac * H))))
-    return _Ctx(params, W, H, min_size, _disc(params.close_px, H), _disc(params.ring_close_px, H), hsv)
+    return _Ctx(params, W, H, min_size, _disc(params.close_px, H), _disc(params.ring_close_px, H), hsv, v_scale)
 
 
 def _disc(px_at_480: int, H: int) -> np.ndarray | None:
@@ -245,8 +264,10 @@ def _level_mask(hue_ok: np.ndarray, sat: np.ndarray, s_min: int, roi: tuple[int,
 
 
 def _search(hue_ok: np.ndarray, sat: np.ndarray, s_min: int, roi: tuple[int, int, int, int], color: str,
-            ctx: _Ctx, depth: int, out: list[_Blob]) -> None:
+            ctx: _Ctx, depth: int, out: list[_Blob], window: tuple[int, int, int, int] | None = None) -> None:
     """Outer contours (holes filled) of `hue_ok & sat >= s_min` inside roi (x0, y0, x1, y1).
+    With `window` (a region searched alone, not the frame), a blob touching its inner edges may
+    be cut by it: it is no proposal, but it is searched inside as any other.
 
     A blob that is not a confident sign is searched again inside its own box one saturation step
     up: a sign glued to a paler background of its colour (sky behind a blue disc, a red wall
@@ -265,7 +286,7 @@ def _search(hue_ok: np.ndarray, sat: np.ndarray, s_min: int, roi: tuple[int, int
         if w < ctx.min_size or h < ctx.min_size:
             continue
         score = 0.0
-        if _size_ok(x, y, w, h, ctx):
+        if _size_ok(x, y, w, h, ctx) and not _cut(x, y, w, h, window, ctx):
             border = x <= 0 or y <= 0 or x + w >= ctx.W or y + h >= ctx.H
             score = _shape_score(c, w, h, (ctx.W, ctx.H) if border else None) if p.shape_score else 1.0
             if score >= p.min_score:
@@ -273,15 +294,25 @@ def _search(hue_ok: np.ndarray, sat: np.ndarray, s_min: int, roi: tuple[int, int
         if rings:  # even a confident blob: a ring glued to a wall can make a round-ish whole
             out += _rings_in_holes(contours, hier[0], i, ctx)
         if score < p.confident and depth < p.max_depth and s_min + p.s_step <= 255:
-            _search(hue_ok, sat, s_min + p.s_step, (x, y, x + w, y + h), color, ctx, depth + 1, out)
+            _search(hue_ok, sat, s_min + p.s_step, (x, y, x + w, y + h), color, ctx, depth + 1, out, window)
 
 
-def _closed_rings(hue_ok: np.ndarray, sat: np.ndarray, s_min: int, ctx: _Ctx) -> list[_Blob]:
+def _cut(x: int, y: int, w: int, h: int, window: tuple[int, int, int, int] | None, ctx: _Ctx) -> bool:
+    """Does box (x, y, w, h) touch an edge of `window` that is not the frame's edge?"""
+    if window is None:
+        return False
+    x0, y0, x1, y1 = window
+    return (0 < x0 >= x) or (0 < y0 >= y) or (ctx.W > x1 <= x + w) or (ctx.H > y1 <= y + h)
+
+
+def _closed_rings(hue_ok: np.ndarray, sat: np.ndarray, s_min: int, ctx: _Ctx,
+                  roi: tuple[int, int, int, int] | None = None) -> list[_Blob]:
     """Thin, faded rings break into arcs that no level joins. A wide closing joins them; a blob
     then counts only if it encloses a hole nearly its own size (the ring's interior), so that
     the wide closing does not add merged clutter. Scored a little below the plain search."""
-    mask = _level_mask(hue_ok, sat, s_min, (0, 0, ctx.W, ctx.H), ctx.ring_kernel)
-    contours, hier = cv2.findContours(mask, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_SIMPLE)
+    roi = roi or (0, 0, ctx.W, ctx.H)
+    mask = _level_mask(hue_ok, sat, s_min, roi, ctx.ring_kernel)
+    contours, hier = cv2.findContours(mask, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_SIMPLE, offset=roi[:2])
     out = []
     for i, c in enumerate(contours):
         parent = hier[0, i, 3]
@@ -289,7 +320,7 @@ def _closed_rings(hue_ok: np.ndarray, sat: np.ndarray, s_min: int, ctx: _Ctx) ->
             continue
         _, _, hw, hh = cv2.boundingRect(c)
         x, y, w, h = cv2.boundingRect(contours[parent])
-        if hw >= 0.5 * w and hh >= 0.5 * h and _size_ok(x, y, w, h, ctx):
+        if hw >= 0.5 * w and hh >= 0.5 * h and _size_ok(x, y, w, h, ctx) and not _cut(x, y, w, h, roi, ctx):
             score = 0.9 * _shape_score(contours[parent], w, h)
             if score >= ctx.params.min_score:
                 out.append(_Blob((x, y, w, h), "red", score))
@@ -387,8 +418,11 @@ def _color_of(red: np.ndarray, blue: np.ndarray, box: tuple[int, int, int, int])
     return "blue" if cv2.countNonZero(blue[y:y + h, x:x + w]) > n_red else "red"
 
 
-def propose(image_bgr: np.ndarray, params: ProposalParams | None = None) -> list[SignDetection]:
+def propose(image_bgr: np.ndarray, params: ProposalParams | None = None, half: np.ndarray | None = None
+            ) -> list[SignDetection]:
     """Sign proposals in a uint8 ``(H, W, 3)`` BGR image (a 2-D grey image is accepted).
+    `half`: the image already scaled to (W // 2, H // 2) with INTER_AREA, if the caller has it
+    (the driver's lane copy): the region search then need not make it.
 
     Returns :class:`SignDetection`\\ s with label ``"unknown"``, ``color`` ``"red"`` or ``"blue"``,
     ``score`` in [0, 1] (shape confidence; 1.0 when shape scoring is off) and ``box`` (x, y, w, h)
@@ -399,21 +433,16 @@ def propose(image_bgr: np.ndarray, params: ProposalParams | None = None) -> list
     H, W = img.shape[:2]
     if H == 0 or W == 0:
         return []
-    hsv = _hsv(img, params)
-    ctx = _make_ctx(hsv, params)
-    specs = _color_specs(params, hsv)
-    blobs: list[_Blob] = []
-    if params.separate_colors:
-        sat = np.ascontiguousarray(hsv[:, :, 1])
-        chroma_ok = _chroma_mask(hsv, params.chroma_min * _scales(hsv, params)[1])
-        for color, hues, s_min, v_min in specs:
-            hue_ok = _hue_mask(hsv, hues, 0, v_min)
-            if chroma_ok is not None:
-                hue_ok = cv2.bitwise_and(hue_ok, chroma_ok)
-            _search(hue_ok, sat, s_min, (0, 0, W, H), color, ctx, 0, blobs)
-            if color == "red" and ctx.ring_kernel is not None:
-                blobs += _closed_rings(hue_ok, sat, s_min, ctx)
+    if params.separate_colors and params.regions:
+        blobs = _search_regions(img, params, half if half is not None and half.shape == (H // 2, W // 2, 3) else None)
+    elif params.separate_colors:
+        hsv = _hsv(img, params)
+        blobs = _search_frame(hsv, _make_ctx(hsv, params), _color_specs(params, hsv), [(0, 0, W, H)])
     else:  # S1: one union mask, colour decided afterwards
+        hsv = _hsv(img, params)
+        ctx = _make_ctx(hsv, params)
+        specs = _color_specs(params, hsv)
+        blobs = []
         masks = {c: _hue_mask(hsv, hues, s, v) for c, hues, s, v in specs}
         union = cv2.bitwise_or(masks["red"], masks["blue"])
         if ctx.kernel is not None:
@@ -422,3 +451,65 @@ def propose(image_bgr: np.ndarray, params: ProposalParams | None = None) -> list
             blobs.append(replace(b, color=_color_of(masks["red"], masks["blue"], b.box)))
     kept = _nms(blobs, params.nms_iou, params.max_proposals)
     return [SignDetection("unknown", round(b.score, 4), _pad(b.box, params.pad_frac, W, H), b.color) for b in kept]
+
+
+def _search_frame(hsv: np.ndarray, ctx: _Ctx, specs, boxes: list[tuple[int, int, int, int]]) -> list[_Blob]:
+    """The robust search of both colours inside each box (x0, y0, x1, y1) of the HSV frame;
+    pixels outside every box are never looked at (a blob a box cuts is no proposal)."""
+    params = ctx.params
+    H, W = hsv.shape[:2]
+    whole = len(boxes) == 1 and boxes[0] == (0, 0, W, H)
+    sat = np.ascontiguousarray(hsv[:, :, 1]) if whole else np.zeros((H, W), np.uint8)
+    hue_ok = {c: np.zeros((H, W), np.uint8) for c, *_ in specs} if not whole else {}
+    c_min = params.chroma_min * ctx.v_scale
+    for x0, y0, x1, y1 in boxes:
+        part = hsv[y0:y1, x0:x1]
+        if not whole:
+            sat[y0:y1, x0:x1] = part[:, :, 1]
+        chroma_ok = _chroma_mask(part, c_min)
+        for color, hues, _, v_min in specs:
+            ok = _hue_mask(part, hues, 0, v_min)
+            if chroma_ok is not None:
+                ok = cv2.bitwise_and(ok, chroma_ok)
+            if whole:
+                hue_ok[color] = ok
+            else:
+                hue_ok[color][y0:y1, x0:x1] = ok
+    blobs: list[_Blob] = []
+    for color, _, s_min, _ in specs:  # in the full-frame order: red, red rings, blue
+        for box in boxes:
+            _search(hue_ok[color], sat, s_min, box, color, ctx, 0, blobs, None if whole else box)
+        if color == "red" and ctx.ring_kernel is not None:
+            for box in boxes:
+                blobs += _closed_rings(hue_ok[color], sat, s_min, ctx, box)
+    return blobs
+
+
+def _search_regions(img: np.ndarray, params: ProposalParams, small: np.ndarray | None) -> list[_Blob]:
+    """Coarse to fine: the robust search on a half-size copy (area-averaged, which also does the
+    blur's work) finds where signs may be; the full-resolution search then runs in a window
+    around each (signs/roi.py makes blurred HSV for the windows only) and gives the boxes. The
+    frame's thresholds come from a sparse sample of the full-resolution frame, for both."""
+    H, W = img.shape[:2]
+    scales = _scales_of(sign_roi.sparse_blurred_hsv(img, SPARSE, params.blur_px), params)
+    specs = _color_specs(params, img, scales)
+    if small is None:
+        small = cv2.resize(img, (max(1, W // 2), max(1, H // 2)), interpolation=cv2.INTER_AREA)
+    small_hsv = cv2.cvtColor(small, cv2.COLOR_BGR2HSV)
+    # the coarse pass only says where to look: it keeps smaller and less sign-like blobs than the
+    # full-resolution search will (a small sign's outline is ragged at half size)
+    loose = replace(params, min_score=COARSE_MIN_SCORE * params.min_score,
+                    min_size_frac=COARSE_SIZE * params.min_size_frac)
+    # and paler ones: averaging 2x2 pixels halves a thin ring's saturation against a white face
+    pale = [(c, hues, int(COARSE_S * s_min), v_min) for c, hues, s_min, v_min in specs]
+    coarse = _search_frame(small_hsv, _make_ctx(small_hsv, loose, scales[1]), pale,
+                           [(0, 0, small.shape[1], small.shape[0])])
+    if not coarse:
+        return []
+    hsv = np.zeros((H, W, 3), np.uint8)
+    ctx = _make_ctx(hsv, params, scales[1])
+    scale = (W / small.shape[1], H / small.shape[0])
+    windows = sign_roi.windows([b.box for b in coarse], scale, (W, H), ctx.min_size)
+    for box in windows:
+        sign_roi.blurred_hsv(img, box, params.blur_px, hsv)
+    return _search_frame(hsv, ctx, specs, windows)

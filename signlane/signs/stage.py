@@ -26,9 +26,10 @@ class SignStage:
         self.confirmed: list[SignDetection] = []
         self.last_ms: dict[str, float] = {}
 
-    def step(self, image_bgr) -> tuple[tuple[SignDetection, ...], list[SignDetection]]:
+    def step(self, image_bgr, half=None) -> tuple[tuple[SignDetection, ...], list[SignDetection]]:
+        """`half`: the frame at half size (INTER_AREA), if the caller has made it (see propose)."""
         t0 = time.perf_counter()
-        found = proposals.propose(image_bgr, self.params)
+        found = proposals.propose(image_bgr, self.params, half)
         t1 = time.perf_counter()
         if self.classifier is not None:
             found = self.classifier.label_detections(image_bgr, found, self.config.min_score)
