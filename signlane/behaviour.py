@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from signlane.control import PurePursuit, path_bend, path_curvature
+from signlane.control import PurePursuit, path_bend_towards, path_curvature
 from signlane.junction import JunctionView
 from signlane.odometry import OdoPose
 from signlane.types import LaneEstimate
@@ -147,7 +147,7 @@ class Behaviour:
         # them could only swallow a new sign at the place dead reckoning drifts them to)
         self.signs = [m for m in self.signs if self._ahead(pose, m) > (-2.0 if m.done else -self.p.instruction_range_m)]
         self._remember_dead_ends(junction, odo_m)
-        if junction is not None and self._reconsider(pose, odo_m):
+        if junction is not None and self._reconsider(pose, odo_m, junction):
             self.path, self.cooldown_until_m = None, -1.0  # plan this junction again, with what is known now
         if self.path is None and junction is not None and odo_m > self.cooldown_until_m:
             self._plan_junction(pose, lane, junction, odo_m)
@@ -257,10 +257,12 @@ class Behaviour:
                 v[0 if dead else 1] += 1
         self._dead = {name: v[0] >= 2 and v[0] > v[1] for name, v in self._votes.items()}
 
-    def _reconsider(self, pose: OdoPose, odo_m: float) -> bool:
+    def _reconsider(self, pose: OdoPose, odo_m: float, j: JunctionView) -> bool:
         """Should the last junction plan be made again? Only while the car has not reached the
-        junction yet, and only for news: a turn sign confirmed after a plan made without one, or
-        a dead end found (later, from closer) on the way the plan takes."""
+        junction yet, and only for news: a turn sign confirmed after a plan made without one, the
+        exit a sign asks for seen after a plan made without it (a side road comes into view
+        later than the other side's), or a dead end found (later, from closer) on the way the
+        plan takes."""
         plan = self._plan
         if plan is not None and odo_m > plan["odo_m"] + plan["far_m"]:
             self._plan, self._dead, self._votes = None, {}, {}  # past that junction: its verdicts are not the next one's
@@ -270,6 +272,14 @@ class Behaviour:
             return False
         if plan["sign"] is None and self._instruction(pose, plan["far_m"] - (odo_m - plan["odo_m"])) is not None:
             return True
+        if plan["sign"] in ("left", "right", "straight") and plan["turn"] != plan["sign"]:
+            exits = self._exits(j)
+            if exits is not None and plan["sign"] in exits:
+                sign = plan["memory"]
+                sign.done = False  # the sign is for this junction still
+                if all(m is not sign for m in self.signs):
+                    self.signs.append(sign)  # (dropped once it was dealt with and passed)
+                return True
         return bool(self._dead.get(plan["turn"]))
 
     def _plan_junction(self, pose: OdoPose, lane: LaneEstimate, j: JunctionView, odo_m: float = 0.0) -> bool:
@@ -285,9 +295,9 @@ class Behaviour:
         if lane.found and abs(lane.heading) > self.p.aligned_rad and near > self.p.commit_late_m:
             return False  # still turning out of a bend (or a lane shift): what it sees of the junction is askew
         if len(exits) == 1 and len(side) == 1 and lane.found:
-            bend = path_bend(lane.path_m, self.p.curve_preview_m) or lane.curvature
             towards = {"right": 1.0, "left": -1.0}.get(next(iter(exits)), 0.0)
-            if towards * bend > self.p.bend_not_junction:
+            bend = path_bend_towards(lane.path_m, self.p.curve_preview_m, towards) or max(0.0, towards * lane.curvature)
+            if bend > self.p.bend_not_junction:
                 return False
         y_c = float(np.mean([o.centre_m for o in side]))
         far = max(o.far_m for o in side)
@@ -299,7 +309,7 @@ class Behaviour:
                                "turn": self.turn, "near_m": round(near, 1),
                                "dead": sorted(n for n, d in self._dead.items() if d)})
         self._plan = {"odo_m": odo_m, "until_m": odo_m + max(near - self.p.replan_margin_m, 0.0), "far_m": far,
-                      "sign": sign.label if sign else None, "turn": self.turn}
+                      "sign": sign.label if sign else None, "memory": sign, "turn": self.turn}
         if self.turn == "straight" and not self.two_lane:
             # a kerbed carriageway's edges carry on across a junction (the far edge stands in
             # for the open one): keep following it, and judge no junction until past this one

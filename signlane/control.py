@@ -69,6 +69,20 @@ def path_bend(path_m: np.ndarray | None, within_m: float) -> float:
     return float(k[np.argmax(np.abs(k))])
 
 
+def path_bend_towards(path_m: np.ndarray | None, within_m: float, side: float) -> float:
+    """The sharpest bend toward one side (side +1: right, -1: left) the car would need to reach
+    a point of the traced centre line within within_m (1/m, 0 when none bends that way). Unlike
+    path_bend it sees a bend beyond an S: the near part of the line bending the other way (the
+    end of a lane shift) does not hide it."""
+    if path_m is None or len(path_m) < 2:
+        return 0.0
+    d2 = path_m[:, 0] ** 2 + path_m[:, 1] ** 2
+    sel = (d2 <= within_m ** 2) & (d2 > 4.0)
+    if not sel.any():
+        return 0.0
+    return max(0.0, float(np.max(side * 2 * path_m[sel, 0] / d2[sel])))
+
+
 def path_curvature(path_m: np.ndarray | None, within_m: float) -> float:
     """The sharpest bend (1/m, unsigned) the car would need to reach any point of a traced centre
     line within within_m: 2|x| / (x^2 + y^2), the pure-pursuit circle to that point."""
