@@ -192,6 +192,37 @@ def test_a_lone_opening_the_lane_bends_toward_is_a_bend_not_a_forced_turn():
     assert _approach(Behaviour(), mirrored, 10.0) == "junction-right"  # bending away: still the junction
 
 
+def test_a_bend_beyond_the_end_of_a_lane_shift_is_still_a_bend():
+    # Out of a lane shift straight into a right bend: the near part of the traced lane still
+    # bends left (the shift's last arc), its far part right. Its sharpest point is the left one,
+    # which hid the bend: the car planned a forced turn of a junction's radius and cut the bend.
+    ys = np.arange(3.5, 12.0, 0.5)
+    x = np.where(ys < 6.0, -ys ** 2 / 30.0, -1.2 - 0.4 * (ys - 6.0) + (ys - 6.0) ** 2 / 4.0)
+    s_bend = LaneEstimate("test", True, curvature=-0.05, lane_width_m=3.2, path_m=np.column_stack([x, ys]))
+    k = 2 * x / (x ** 2 + ys ** 2)
+    assert -k.min() > k.max() > BehaviourParams().bend_not_junction  # the left part is the sharpest
+    assert _approach(Behaviour(), s_bend, 10.0) != "junction-right"
+
+
+def test_a_turn_sign_whose_exit_comes_into_view_after_the_plan_is_obeyed():
+    # A crossroads whose right arm shows a few frames after the left one: planned with the left
+    # and straight exits only, the right sign could not be obeyed; once the right arm is seen
+    # (the car still short of the junction) the plan is made again, and the sign still holds.
+    ys = np.arange(3.5, 12.0, 0.5)
+    lane = LaneEstimate("test", True, lane_width_m=4.0, path_m=np.column_stack([np.zeros_like(ys), ys]))
+    b = Behaviour()
+    b.observe_signs([("right", np.array([3.0, 9.0]))])
+    states = []
+    for i in range(6):
+        n = 11.0 - 0.5 * i
+        right = Opening(n, n + 4.0, True, dead=False) if i >= 3 else None
+        view = JunctionView(Opening(n, n + 4.0, True, dead=False), right, True, straight_dead=False)
+        states.append(b.step(0.1 * i, OdoPose(0.0, 0.5 * i), 0.5 * i, 4.0, lane, view, two_lane=False)[2])
+    assert [d["turn"] for d in b.decisions] == ["straight", "right"]
+    assert [d["sign"] for d in b.decisions] == ["right", "right"]
+    assert states[-1] == "junction-right"
+
+
 def test_an_opening_whose_near_end_is_outside_the_view_is_planned_once_in_view():
     # VIA's camera shows a painted road's left strip from about 12 m on, so an opening there
     # begins at the view's edge (12.1 m on one lap) and never came nearer than commit_near_m
