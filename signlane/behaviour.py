@@ -90,6 +90,7 @@ class Behaviour:
         self._epoch = 0  # junctions passed
         self.signs: list[SignMemory] = []
         self.path: np.ndarray | None = None  # junction path, odometry frame
+        self._seen_path: np.ndarray | None = None  # the lane's centre line last traced, odometry frame
         self.turn = ""
         self.stop_sign: SignMemory | None = None
         self.stopped_since: float | None = None
@@ -158,9 +159,26 @@ class Behaviour:
                 return steering, stop[0] / self.p.max_speed, stop[1]
             return steering, throttle, state
         self.follow.lookahead, self.follow.per_mps = self.p.lookahead_painted if two_lane else self.p.lookahead_kerbed
-        steering = self.follow.step(lane, speed)
+        if lane.found and lane.path_m is not None and len(lane.path_m) >= 2:
+            self._seen_path = pose.to_world(lane.path_m)
+        steering = self.follow.step(lane, speed) if lane.found else self._follow_seen(pose, lane, speed)
         v, state = self._speed(t, pose, speed, lane)
         return steering, v / self.p.max_speed, state
+
+    def _follow_seen(self, pose: OdoPose, lane: LaneEstimate, speed: float) -> float:
+        """Steering while the lane is lost: along the centre line last traced, placed in the
+        odometry frame, while some of it is still ahead (a tight bend leaves the view sideways:
+        straight on from there crosses its outer kerb); then drifting back to straight."""
+        if self._seen_path is not None:
+            car = pose.to_car(self._seen_path)
+            ahead = np.flatnonzero(car[:, 1] > 0.5)
+            if len(ahead):
+                d = np.hypot(car[ahead, 0], car[ahead, 1])
+                i = ahead[np.argmin(np.abs(d - (self.follow.lookahead + self.follow.per_mps * max(speed, 0.0))))]
+                self.follow.last = self.follow.steer_to(float(car[i, 0]), float(car[i, 1]))
+                return self.follow.last
+            self._seen_path = None  # driven past its end
+        return self.follow.step(lane, speed)
 
     def _stop(self, t: float, pose: OdoPose, speed: float) -> tuple[float, str] | None:
         """Speed and state while a stop sign is pending (coast to a full stop before it, hold,
@@ -320,6 +338,7 @@ class Behaviour:
         if lane.found:  # laid along the road, not along the car (heading > 0: the car points right of it)
             path = _rotate(path, lane.heading)
         self.path = pose.to_world(path)
+        self._seen_path = None  # traced before the junction: not the way out of it
         self.follow.reset()
         return True
 
