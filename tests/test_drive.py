@@ -223,6 +223,22 @@ def test_a_turn_sign_whose_exit_comes_into_view_after_the_plan_is_obeyed():
     assert states[-1] == "junction-right"
 
 
+def test_a_lane_lost_in_a_bend_is_followed_along_the_line_last_traced():
+    # In a tight bend the road leaves the view sideways and the lane is lost: drifting back to
+    # straight from there took the car over the bend's outer kerb. It keeps to the centre line
+    # it last saw (odometry frame) while that is ahead, then drifts straight.
+    r = 6.0  # a left bend of VIA's 2x2 turn
+    ys = np.arange(0.5, 5.9, 0.25)
+    bend = LaneEstimate("test", True, lane_width_m=4.0, path_m=np.column_stack([-(r - np.sqrt(r * r - ys ** 2)), ys]))
+    lost = LaneEstimate("test", False)
+    b = Behaviour()
+    seen = b.step(0.0, OdoPose(0.0, 0.0), 0.0, 3.0, bend, None, two_lane=False)[0]
+    steer = [b.step(0.1 * i, OdoPose(0.0, 0.3 * i), 0.3 * i, 3.0, lost, None, two_lane=False)[0] for i in range(1, 6)]
+    assert seen < -0.2 and all(s < 0.7 * seen for s in steer)  # still turning left, more as the line curves on
+    later = [b.step(1.0 + 0.1 * i, OdoPose(0.0, 12.0 + i), 12.0 + i, 3.0, lost, None, two_lane=False)[0] for i in range(15)]
+    assert abs(later[-1]) < 0.1 * abs(seen)  # past its end: back to straight
+
+
 def test_an_opening_whose_near_end_is_outside_the_view_is_planned_once_in_view():
     # VIA's camera shows a painted road's left strip from about 12 m on, so an opening there
     # begins at the view's edge (12.1 m on one lap) and never came nearer than commit_near_m
