@@ -62,6 +62,11 @@ def test_train_command_runs_either_kind_and_reports_bad_data_in_one_line(trained
         assert main(["train", kind, str(tmp_path / "none"), "--out", str(tmp_path / kind)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 2 and all("none" in line for line in err)
+    # a Trainer argument Lightning refuses for this data: its reason, in one line
+    assert main(["train", "signs", str(root / "data"), "--out", str(tmp_path / "bad"), "--epochs", "1",
+                 "--workers", "0", "--trainer.limit_train_batches", "0.0001"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "limit_train_batches" in err[0], err
 
 
 def test_export_matches_torch_and_carries_its_contract(trained):

@@ -147,10 +147,11 @@ def _run_train(args) -> int:
         train, own = train_signs, dict(size=opts["size"], class_weights=opts["class_weights"], augment=opts["augment"])
     opts["out"].mkdir(parents=True, exist_ok=True)
     atomic_write_text(opts["out"] / "train.toml", as_toml(resolved, trainer))  # this run, as a --config
+    from lightning.fabric.utilities.exceptions import MisconfigurationException
     try:
         report = train(opts["data"], opts["out"], trainer_args=trainer, **shared, **own)
-    except ValueError as e:
-        raise UserError(str(e)) from None
+    except (ValueError, MisconfigurationException) as e:  # e.g. a Trainer argument this data cannot take
+        raise UserError((str(e).strip().splitlines() or [type(e).__name__])[0]) from None
     report.pop("confusion", None)  # a matrix: confusion.png shows it
     print(json.dumps(report, indent=1))
     return 0
