@@ -37,6 +37,31 @@ def pixels_arg(text: str) -> int:
         raise argparse.ArgumentTypeError(f"pixel limit must look like 4096x4096 or 16777216, not {text!r}") from None
 
 
+def port_arg(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        v = -1
+    if not 0 <= v <= 65535:
+        raise argparse.ArgumentTypeError(f"must be a port 0..65535, not {text!r}")
+    return v
+
+
+def add_serve_args(p, port: int, what: str, when: str = "") -> None:
+    """--host, --port, --no-web and --allow-control of a command that serves `what` (and the
+    monitor page beside it); `when`: the option they need, if any (e.g. "with --with-driver: ")."""
+    p.add_argument("--host", default="127.0.0.1",
+                   help=f"{when}{what}'s address (default 127.0.0.1; anything else opens it to the network, "
+                        "with a warning)")
+    free = "0: any free port; the log says which" if port == 0 else f"{port}; 0 = any free"
+    p.add_argument("--port", type=port_arg, default=port, help=f"{when}{what}'s port (default {free})")
+    p.add_argument("--no-web", action="store_true",
+                   help=f"{when}no monitor page (default: http://HOST:PORT/ shows what the driver sees, live)")
+    p.add_argument("--allow-control", action="store_true",
+                   help=f"{when}let monitor viewers save the current frame and its state (monitor_snapshots/); "
+                        "without it no page or endpoint writes anything or changes a setting")
+
+
 def add_config_args(p, config_help: str = "TOML config file (sections camera, lanes, signs, control)") -> None:
     """--config FILE and repeatable --set SECTION.KEY=VALUE, read by load_config."""
     p.add_argument("--config", type=Path, help=config_help)

@@ -6,7 +6,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from signlane.commands.common import UserError, pixels_arg, positive, size_arg
-from signlane.commands.common import add_config_args, load_config
+from signlane.commands.common import add_config_args, add_serve_args, load_config
 
 
 def add_drive(sub) -> None:
@@ -32,14 +32,7 @@ def add_drive(sub) -> None:
                     "  signlane drive                                # then start the simulator\n"
                     "  signlane drive --lanes canny-scan --no-signs\n"
                     "  signlane drive --record runs/drive1 --show-every 20 --show-dir runs/drive1_frames")
-    p.add_argument("--host", default="127.0.0.1",
-                   help="address to listen on (default 127.0.0.1; 0.0.0.0 exposes the car to the network)")
-    p.add_argument("--port", type=int, default=4567, help="port (default 4567, the simulator's; 0 = any free)")
-    p.add_argument("--no-web", action="store_true",
-                   help="no monitor page (default: http://HOST:PORT/ shows what the driver sees, live)")
-    p.add_argument("--allow-control", action="store_true",
-                   help="let monitor viewers save the current frame and its state (monitor_snapshots/); without "
-                        "it no page or endpoint writes anything or changes a setting")
+    add_serve_args(p, 4567, "the drive server")
     p.add_argument("--lanes", metavar="METHOD",
                    help="lane method: auto (default: road-edges on a kerbed carriageway such as VIA's, "
                         "sliding-window on painted lanes), road-edges, sliding-window, canny-scan, color-hough, "
@@ -76,8 +69,6 @@ def _run_drive(args) -> int:
     cfg = load_config(args)
     if args.signs is not None:
         cfg = replace(cfg, signs=replace(cfg.signs, enabled=args.signs))
-    if not 0 <= args.port <= 65535:
-        raise UserError(f"--port must be 0..65535, not {args.port}")
     if args.log_every <= 0:
         raise UserError(f"--log-every must be > 0, not {args.log_every}")
     options = ServerOptions(host=args.host, port=args.port, max_bytes=args.max_bytes, max_pixels=args.max_pixels,

@@ -5,7 +5,7 @@ import argparse
 from dataclasses import replace
 from pathlib import Path
 
-from signlane.commands.common import UserError, add_config_args, load_config
+from signlane.commands.common import UserError, add_config_args, add_serve_args, load_config
 
 
 def _fraction(text: str) -> float:
@@ -73,12 +73,7 @@ def add_run(sub) -> None:
     p.add_argument("--sync-signs", action=argparse.BooleanOptionalAction, default=None,
                    help="classify signs in step with every frame (default for --video) rather than beside the "
                         "lane path (default for --camera, so signs never delay steering)")
-    p.add_argument("--no-web", action="store_true", help="no monitor page")
-    p.add_argument("--host", default="127.0.0.1",
-                   help="monitor address (default 127.0.0.1; anything else shows the camera to the network)")
-    p.add_argument("--port", type=int, default=4567, help="monitor port (default 4567; 0 = any free)")
-    p.add_argument("--allow-control", action="store_true",
-                   help="let monitor viewers save the current frame and its state (monitor_snapshots/)")
+    add_serve_args(p, 4567, "the monitor")
     add_config_args(p)
     p.set_defaults(func=_run)
 
@@ -97,8 +92,6 @@ def _run(args) -> int:
     cfg = load_config(args)
     if args.signs is not None:
         cfg = replace(cfg, signs=replace(cfg.signs, enabled=args.signs))
-    if not 0 <= args.port <= 65535:
-        raise UserError(f"--port must be 0..65535, not {args.port}")
     camera = args.camera is not None
     smoothing = args.smoothing if args.smoothing is not None else (0.5 if camera else 1.0)
     sync = args.sync_signs if args.sync_signs is not None else not camera

@@ -5,7 +5,7 @@ import argparse
 import math
 from pathlib import Path
 
-from signlane.commands.common import UserError, positive, size_arg
+from signlane.commands.common import UserError, add_serve_args, positive, size_arg
 
 
 def fps_arg(text: str) -> float:
@@ -68,15 +68,7 @@ def add_sim(sub) -> None:
     p.add_argument("--video", action="store_true",
                    help="with --out: drive.mp4 (H.264), the frames with the command and, with --with-driver, what "
                         "the driver saw (lanes, sign boxes, state), as `demo` draws it")
-    p.add_argument("--port", type=int, default=0,
-                   help="with --with-driver: the drive server's port, where the monitor page is too (default 0: any "
-                        "free port; the log says which)")
-    p.add_argument("--host", default="127.0.0.1",
-                   help="with --with-driver: its address (default 127.0.0.1; anything else shows the monitor to "
-                        "the network)")
-    p.add_argument("--no-web", action="store_true", help="with --with-driver: no monitor page")
-    p.add_argument("--allow-control", action="store_true",
-                   help="with --with-driver: let monitor viewers save the current frame (monitor_snapshots/)")
+    add_serve_args(p, 0, "the drive server", when="with --with-driver: ")
     p.add_argument("--lanes", help="lane method for --with-driver (default from the config)")
     p.add_argument("--no-signs", action="store_true", help="--with-driver without the sign stage")
     p.add_argument("--config", type=Path, help="TOML config for --with-driver")
@@ -109,8 +101,6 @@ def _run_sim(args) -> int:
                         random_looks=args.random_looks, looks_seed=args.seed, laps=args.laps,
                         max_seconds=args.max_seconds, decimal=args.decimal)
     url = None if args.with_driver else args.url
-    if not 0 <= args.port <= 65535:
-        raise UserError(f"--port must be 0..65535, not {args.port}")
     from signlane.sim.server import ServerOptions
     options = ServerOptions(host=args.host, port=args.port, web=not args.no_web, allow_control=args.allow_control)
     if args.with_driver and not args.no_web:

@@ -20,7 +20,6 @@ import asyncio
 import logging
 import os
 import signal
-import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -31,6 +30,7 @@ from websockets.asyncio.server import ServerConnection
 from websockets.asyncio.server import serve as ws_serve
 from websockets.exceptions import ConnectionClosed
 
+from signlane.background_server import BackgroundServer
 from signlane.config import Config
 from signlane.imagecheck import DEFAULT_MAX_PIXELS
 from signlane.sim.drive_record import DiskWriter, Recorder, Shower, sent_command
@@ -352,7 +352,7 @@ def run_server(config: Config, options: ServerOptions) -> dict:
     return asyncio.run(main())
 
 
-class DriveServer:
+class DriveServer(BackgroundServer):
     """The drive server on a background thread, for tests and `signlane sim --with-driver`:
 
         with DriveServer(config) as srv:   # listens on a free port
@@ -361,53 +361,16 @@ class DriveServer:
 
     def __init__(self, config: Config | None = None, options: ServerOptions | None = None,
                  driver_factory: Callable[[], Any] | None = None, start_timeout_s: float = 60.0):
+        super().__init__("drive-server", start_timeout_s=start_timeout_s)
         self.config = config or Config()
         self.options = options or ServerOptions(port=0)
         self.driver_factory = driver_factory
-        self.start_timeout_s = start_timeout_s
-        self.port: int | None = None
         self.totals: dict | None = None
-        self._ready = threading.Event()
-        self._error: BaseException | None = None
-        self._loop: asyncio.AbstractEventLoop | None = None
-        self._stop: asyncio.Event | None = None
-        self._thread = threading.Thread(target=self._main, name="drive-server", daemon=True)
 
     @property
     def url(self) -> str:
         return f"ws://{self.options.host}:{self.port}"
 
-    def _main(self) -> None:
-        async def main() -> None:
-            self._loop, self._stop = asyncio.get_running_loop(), asyncio.Event()
-            self.totals = await serve(self.config, self.options, self.driver_factory, self._set_port, self._stop)
-        try:
-            asyncio.run(main())
-        except BaseException as e:  # reported to the thread that called start()
-            self._error = e
-        finally:
-            self._ready.set()
-
-    def _set_port(self, port: int) -> None:
-        self.port = port
-        self._ready.set()
-
-    def start(self) -> "DriveServer":
-        self._thread.start()
-        if not self._ready.wait(self.start_timeout_s):
-            raise TimeoutError(f"drive server did not start within {self.start_timeout_s:.0f} s")
-        if self._error is not None:
-            raise self._error
-        return self
-
-    def close(self) -> None:
-        if self._loop is not None and self._thread.is_alive():
-            self._loop.call_soon_threadsafe(self._stop.set)
-        self._thread.join(timeout=30)
-
-    def __enter__(self) -> "DriveServer":
-        return self.start()
-
-    def __exit__(self, *exc) -> None:
-        self.close()
+    async def serve_until(self, stop: asyncio.Event) -> None:
+        self.totals = await serve(self.config, self.options, self.driver_factory, self.listening, stop)
 
