@@ -104,7 +104,7 @@ class Config:
             out.append(f"[{section.name}]")
             for f in fields(getattr(self, section.name)):
                 value = getattr(getattr(self, section.name), f.name)
-                line = f"{f.name} = {_toml_value(value)}"
+                line = f"{f.name} = {toml_value(value)}"
                 note = notes.get((section.name, f.name))
                 out.append(f"{line}  # {note}" if note else line)
             out.append("")
@@ -144,7 +144,7 @@ class Config:
                 raise ValueError(f"{small} = {_get(self, small)!r} is more than {big} = {_get(self, big)!r}")
 
 
-def _toml_value(v: Any) -> str:
+def toml_value(v: Any) -> str:
     if isinstance(v, bool):
         return "true" if v else "false"
     if isinstance(v, int):
@@ -156,7 +156,9 @@ def _toml_value(v: Any) -> str:
     if isinstance(v, str):
         return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
     if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+        return "[" + ", ".join(toml_value(x) for x in v) + "]"
+    if isinstance(v, dict):  # an inline table (a Trainer's max_time = {hours = 1})
+        return "{" + ", ".join(f"{k} = {toml_value(x)}" for k, x in v.items()) + "}"
     raise TypeError(f"no TOML form for {v!r}")
 
 

@@ -157,16 +157,7 @@ def read_train_config(path: Path | None) -> tuple[dict, dict]:
 
 def as_toml(train: dict, trainer: dict) -> str:
     """The resolved training options as a config file for --config."""
-    def value(v) -> str:
-        if isinstance(v, bool):
-            return "true" if v else "false"
-        if isinstance(v, (int, float)):
-            return repr(v)
-        if isinstance(v, (list, tuple)):
-            return "[" + ", ".join(value(x) for x in v) + "]"
-        if isinstance(v, dict):
-            return "{" + ", ".join(f"{k} = {value(x)}" for k, x in v.items()) + "}"
-        return '"' + str(v).replace("\\", "\\\\").replace('"', '\\"') + '"'
-    lines = ["[train]"] + [f"{k} = {value(v)}" for k, v in train.items() if v is not None]
-    lines += ["", "[trainer]"] + [f"{k} = {value(v)}" for k, v in trainer.items() if v is not None]
+    from signlane.config import toml_value
+    lines = ["[train]"] + [f"{k} = {toml_value(v)}" for k, v in train.items() if v is not None]
+    lines += ["", "[trainer]"] + [f"{k} = {toml_value(v)}" for k, v in trainer.items() if v is not None]
     return "\n".join(lines) + "\n"

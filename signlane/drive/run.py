@@ -14,15 +14,17 @@ from __future__ import annotations
 import logging
 import threading
 import time
+from collections import deque
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from signlane.control import MAX_WHEEL_DEG  # steering 1.0 as a wheel angle, for odometry
 from signlane.drive.signs import SignStageError
 from signlane.types import Command
 
 log = logging.getLogger("signlane.run")
-MAX_WHEEL_DEG = 25.0  # steering 1.0 as a wheel angle, for odometry (VIA's car; a small car's is similar)
+KEEP_LATENCIES = 20000  # frame -> command times kept for the summary (a camera runs for hours)
 
 
 def safe_stop(why: str) -> Command:
@@ -53,10 +55,10 @@ class RunTotals:
     failed: int = 0  # frames the stack failed on (answered with a safe stop)
     timeouts: int = 0  # times the source went quiet for longer than the timeout
     ended: str = ""
-    step_ms: list[float] = field(default_factory=list)  # frame read -> command sent
+    step_ms: deque = field(default_factory=lambda: deque(maxlen=KEEP_LATENCIES))  # frame read -> command sent
 
     def summary(self, read: int) -> str:
-        ms = np.asarray(self.step_ms[-20000:]) if self.step_ms else None
+        ms = np.asarray(self.step_ms) if self.step_ms else None
         lat = f"; frame -> command median {np.median(ms):.1f} ms, p99 {np.percentile(ms, 99):.1f} ms" \
             if ms is not None else ""
         return (f"{self.frames} frames driven of {read} read ({read - self.frames - self.failed} dropped while busy, "
