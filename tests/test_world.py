@@ -403,3 +403,23 @@ def test_where_the_car_left_the_road_is_in_the_report_and_crossed_on_the_picture
     assert (np.abs(near - MARK_BGR).sum(axis=1) < 40).sum() > 8  # a yellow cross there
     strip = img[h:].reshape(-1, 3).astype(int)
     assert (np.abs(strip - MARK_BGR).sum(axis=1) < 40).sum() > 8  # and its legend entry
+
+
+def test_the_map_pictures_start_dot_is_where_the_car_starts_not_where_the_lap_begins():
+    # A lap is the cycle the road from the start falls into; on procedural seed 138 the car
+    # starts on a road that leads into it, and the dot was drawn at the cycle's first point.
+    from signlane.world.procedural import generate_map
+    from signlane.world.topdown import draw_topdown, minimap_frame
+    track = Track.from_via(generate_map(138))
+    lap = Route.loop(track).lane
+    start = np.asarray(track.start_state()[3], float)
+    assert np.hypot(*(lap[0] - start)) > 20.0  # this map's lap does begin elsewhere
+    img = draw_topdown(build_scene(track), path_xy=lap, start_xy=start)
+    x0, y1, k, _, _ = minimap_frame(track)
+
+    def green_near(xy):
+        u, v = int(round((xy[0] - x0) * k)), int(round((y1 - xy[1]) * k))
+        near = img[v - 3:v + 4, u - 3:u + 4].reshape(-1, 3).astype(int)
+        return (np.abs(near - (0, 255, 0)).sum(axis=1) < 60).sum()
+
+    assert green_near(start) > 10 and green_near(lap[0]) == 0

@@ -147,6 +147,7 @@ def add_map(sub) -> None:
 def _run_map(args) -> int:
     from signlane.draw import write_image
     from signlane.fileio import atomic_write_json
+    import numpy as np
     from signlane.world.procedural import generate_map
     from signlane.world.route import Route
     from signlane.world.scene import build_scene
@@ -174,7 +175,9 @@ def _run_map(args) -> int:
                       "signs": [s.kind for s in track.signs], "dead_ends": len(track.dead_ends),
                       "lap_m": lap_m, "warnings": track.warnings}))
     if args.png:
-        write_image(args.png, draw_topdown(build_scene(track), path_xy=path, legend="lap from the start"))
+        # (the lap is the cycle the road from the start falls into: the car may start before it)
+        write_image(args.png, draw_topdown(build_scene(track), path_xy=path, legend="lap from the start",
+                                           start_xy=np.asarray(track.start_state()[3], float)))
     if args.save and data is not None:
         atomic_write_json(args.save, data)
     return 0

@@ -45,12 +45,13 @@ def road_mask(track, scene: Scene, px_per_cell: float = PX_PER_CELL) -> np.ndarr
 
 def draw_topdown(scene: Scene, px_per_cell: float = PX_PER_CELL, path_xy: np.ndarray | None = None,
                  marks: list[tuple[float, float]] | None = None, marks_label: str = "mark",
-                 signs: bool = True, legend: str | None = None) -> np.ndarray:
+                 signs: bool = True, legend: str | None = None, start_xy: np.ndarray | None = None) -> np.ndarray:
     """uint8 BGR picture of the scene from above (see the module docstring); path_xy (N,2) world
     metres is drawn in red, marks (world metres) as yellow crosses, called `marks_label` in the
     legend. With `legend` (what the red path is, e.g. "driven
     path"), a strip below the map says what each colour is, with a 10 m scale bar; the map
-    itself stays VIA's minimap, pixel for pixel."""
+    itself stays VIA's minimap, pixel for pixel. The green start dot is start_xy (world metres),
+    by default the path's first point."""
     track = scene.track
     x0, y1, k, w, h = minimap_frame(track, px_per_cell)
     img = np.full((h, w, 3), MINIMAP_GROUND.get(track.background, MINIMAP_GROUND["none"]), np.uint8)
@@ -73,7 +74,8 @@ def draw_topdown(scene: Scene, px_per_cell: float = PX_PER_CELL, path_xy: np.nda
     if path_xy is not None and len(path_xy) > 1:
         pts = np.round(to_px(path_xy) * 16).astype(np.int32)
         cv2.polylines(img, [pts], False, (0, 0, 255), 2, cv2.LINE_AA, 4)
-        cv2.circle(img, tuple(int(v) for v in to_px(path_xy[:1])[0]), 4, (0, 255, 0), -1)
+        start = path_xy[:1] if start_xy is None else start_xy
+        cv2.circle(img, tuple(int(v) for v in to_px(start)[0]), 4, (0, 255, 0), -1)
     px_per_m = k
     for obj in scene.objects if signs else []:
         c = to_px([[obj.x, obj.y]])[0]
