@@ -280,7 +280,9 @@ class Behaviour:
             if o is not None and o.closed:
                 self._openings[side] = (pose.to_world(np.array([[0.0, o.near_m], [0.0, o.far_m]])), o.dead, odo_m)
         self._openings = {s: m for s, m in self._openings.items() if odo_m - m[2] <= self.p.opening_memory_m}
-        if j.end_m is None or any(o is not None and o.closed for o in (j.left, j.right)):
+        # (kerbed carriageways only: painted tracks have no dead ends, and on their 12 m cells a
+        # dead end is not seen in time; see the README's limitations)
+        if self.two_lane or j.end_m is None or any(o is not None and o.closed for o in (j.left, j.right)):
             return j
         recalled = {}
         for side, (ends, dead, _) in self._openings.items():
