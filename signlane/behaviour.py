@@ -16,12 +16,12 @@ by `max_speed`; there are no brakes, so slowing is coasting and stops are planne
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
 from signlane.control import PurePursuit, path_bend_towards, path_curvature
-from signlane.junction import JunctionView, Opening
+from signlane.junction import JunctionView
 from signlane.odometry import OdoPose
 from signlane.types import LaneEstimate
 
@@ -63,14 +63,6 @@ class BehaviourParams:
     # (1/m; a 25 m circle): a bend (its outer side looks like road ending, its inner like an
     # opening), left to the lane follower. The lane at a junction runs straight up to it
     bend_not_junction: float = 0.04
-    # a side road seen (closed) is remembered in the odometry frame this far on: where the road
-    # ahead then visibly ends, it is the way on even once out of view (a T reached along its
-    # through road, whose straight arm is a stub, seen askew out of a lane shift)
-    opening_memory_m: float = 20.0
-    end_past_opening_m: float = 10.0  # ... for a road ending this soon past the side road's far side
-    # a turn into a remembered side road is planned as late as its arc allows (within this far of
-    # its start): by then the car is out of what hid the side road and points along the road
-    recall_lead_m: float = 1.5
     handover_offset: float = 0.5  # out of a kerbed turn's arc, the lane takes over when the car is this near its middle (lane widths)
 
 
@@ -101,8 +93,6 @@ class Behaviour:
         self.path: np.ndarray | None = None  # junction path, odometry frame
         self._arc_end: np.ndarray | None = None  # where a turn's arc ends on it
         self._seen_path: np.ndarray | None = None  # the lane's centre line last traced, odometry frame
-        self._openings: dict[str, tuple[np.ndarray, bool | None, float]] = {}  # side -> (near/far points, dead, odo seen)
-        self._recalled = False  # this frame's view has remembered side roads in it
         self.turn = ""
         self.stop_sign: SignMemory | None = None
         self.stopped_since: float | None = None
@@ -159,7 +149,6 @@ class Behaviour:
         # forget signs left far behind, and those dealt with once passed (out of view: a memory of
         # them could only swallow a new sign at the place dead reckoning drifts them to)
         self.signs = [m for m in self.signs if self._ahead(pose, m) > (-2.0 if m.done else -self.p.instruction_range_m)]
-        junction = self._recall_openings(pose, odo_m, junction)
         self._remember_dead_ends(junction, odo_m)
         if junction is not None and self._reconsider(pose, odo_m, junction):
             self.path, self.cooldown_until_m = None, -1.0  # plan this junction again, with what is known now
@@ -266,34 +255,6 @@ class Behaviour:
                 and -self.p.instruction_range_m < self._ahead(pose, m) < far_m + self.p.sign_slack_m]
         return max(live, key=lambda m: self._ahead(pose, m), default=None)
 
-    def _recall_openings(self, pose: OdoPose, odo_m: float, j: JunctionView | None) -> JunctionView | None:
-        """The view with the side roads seen shortly before put back in, where the road ahead
-        visibly ends and no side road is in view now: seen askew (out of a lane shift or a bend)
-        a side road shows open, not closed, and from beside it not at all, and the car drove on
-        into the dead end straight ahead. Side roads seen closed are remembered in the odometry
-        frame (their near and far ends on the car's line)."""
-        self._recalled = False
-        if j is None:
-            return None
-        for side in ("left", "right"):
-            o = getattr(j, side)
-            if o is not None and o.closed:
-                self._openings[side] = (pose.to_world(np.array([[0.0, o.near_m], [0.0, o.far_m]])), o.dead, odo_m)
-        self._openings = {s: m for s, m in self._openings.items() if odo_m - m[2] <= self.p.opening_memory_m}
-        # (kerbed carriageways only: painted tracks have no dead ends, and on their 12 m cells a
-        # dead end is not seen in time; see the README's limitations)
-        if self.two_lane or j.end_m is None or any(o is not None and o.closed for o in (j.left, j.right)):
-            return j
-        recalled = {}
-        for side, (ends, dead, _) in self._openings.items():
-            near, far = pose.to_car(ends)[:, 1]
-            if far > 0.5 and j.end_m - far < self.p.end_past_opening_m:
-                recalled[side] = Opening(float(near), float(far), True, dead)
-        if not recalled:
-            return j
-        self._recalled = True
-        return replace(j, **recalled, straight=False, straight_dead=True)
-
     def _remember_dead_ends(self, j: JunctionView | None, odo_m: float) -> None:
         """Dead-end verdicts of the openings ahead (and of the road straight on), counted over the
         frames that could tell (far enough to see past a side road's end) up to the frame that
@@ -324,7 +285,7 @@ class Behaviour:
         plan takes."""
         plan = self._plan
         if plan is not None and odo_m > plan["odo_m"] + plan["far_m"]:
-            self._plan, self._dead, self._votes, self._openings = None, {}, {}, {}  # past that junction: its verdicts are not the next one's
+            self._plan, self._dead, self._votes = None, {}, {}  # past that junction: its verdicts are not the next one's
             self._epoch += 1  # and the turn signs seen before it were for it
             return False
         if plan is None or odo_m > plan["until_m"]:
@@ -356,26 +317,18 @@ class Behaviour:
             return False  # still turning out of a bend (or a lane shift): what it sees of the junction is askew
         if len(exits) == 1 and len(side) == 1 and lane.found:
             towards = {"right": 1.0, "left": -1.0}.get(next(iter(exits)), 0.0)
-            # (beside a remembered side road the lane traced runs into it: only the lane before
-            # the side road tells a bend)
-            within = min(self.p.curve_preview_m, near) if self._recalled else self.p.curve_preview_m
-            bend = path_bend_towards(lane.path_m, within, towards) or \
-                (0.0 if self._recalled and near <= 2.0 else max(0.0, towards * lane.curvature))
+            bend = path_bend_towards(lane.path_m, self.p.curve_preview_m, towards) or max(0.0, towards * lane.curvature)
             if bend > self.p.bend_not_junction:
                 return False
         y_c = float(np.mean([o.centre_m for o in side]))
         far = max(o.far_m for o in side)
         sign = self._instruction(pose, far)
-        turn = self.choose(exits, sign.label if sign else None)
-        if self._recalled and turn != "straight" and _arc_start(turn, y_c, self.p, self.two_lane) > self.p.recall_lead_m:
-            return False
-        self.turn = turn
+        self.turn = self.choose(exits, sign.label if sign else None)
         if sign is not None:
             sign.done = True
         self.decisions.append({"odo_m": round(odo_m, 1), "exits": sorted(exits), "sign": sign.label if sign else None,
                                "turn": self.turn, "near_m": round(near, 1),
                                "dead": sorted(n for n, d in self._dead.items() if d)})
-        self._openings = {}  # planned: the side roads seen were this junction's
         self._plan = {"odo_m": odo_m, "until_m": odo_m + max(near - self.p.replan_margin_m, 0.0), "far_m": far,
                       "sign": sign.label if sign else None, "memory": sign, "turn": self.turn,
                       "dead_at_plan": bool(self._dead.get(self.turn))}
@@ -453,8 +406,3 @@ def _turn(turn: str, y_c: float, p: BehaviourParams, two_lane: bool) -> tuple[fl
         return (p.right_radius_m if two_lane else p.kerbed_radius_m), y_c - h, 1.0
     return (p.left_radius_m if two_lane else p.kerbed_radius_m), y_c + h, -1.0
 
-
-def _arc_start(turn: str, y_c: float, p: BehaviourParams, two_lane: bool) -> float:
-    """How far ahead a turn's arc begins (the car drives straight until there)."""
-    r, y_exit, _ = _turn(turn, y_c, p, two_lane)
-    return y_exit - r

@@ -44,9 +44,6 @@ class JunctionView:
     straight: bool | None  # road beyond the side road; None = not judged (no opening or not seen)
     road_mask: np.ndarray | None = None  # uint8 bird's-eye 0/255, for people
     straight_dead: bool | None = None  # the road ahead visibly ends past the junction; None = cannot tell
-    # where the road straight ahead visibly ends (ground seen beyond it, none of it road), metres,
-    # judged with or without a side road in view; None where it is not seen ending
-    end_m: float | None = None
 
 
 @dataclass(frozen=True)
@@ -271,17 +268,14 @@ def view_from_scan(scan, params: ScanJunctionParams | None = None) -> JunctionVi
             dead_ahead = _road_ends(scan, far, p)
             if dead_ahead:
                 straight = False  # the road stops just past the junction: a dead end ahead
-    return JunctionView(sides["left"], sides["right"], straight, straight_dead=dead_ahead, end_m=road_end_m(scan))
+    return JunctionView(sides["left"], sides["right"], straight, straight_dead=dead_ahead)
 
 
 def with_road_end(view: JunctionView, scan, params: ScanJunctionParams | None = None) -> JunctionView:
     """A painted road's junction view with the road-edge scan's word on whether the road straight
     on ends just past the junction (a dead end the edge-line detector cannot see)."""
-    if scan is None or len(scan.y) < 4:
-        return view
-    view = replace(view, end_m=road_end_m(scan))
     opened = [o for o in (view.left, view.right) if o is not None and o.closed]
-    if not opened:
+    if not opened or scan is None or len(scan.y) < 4:
         return view
     dead = _road_ends(scan, max(o.far_m for o in opened), params or ScanJunctionParams())
     return replace(view, straight_dead=dead, straight=bool(view.straight) and not dead)
@@ -329,12 +323,6 @@ def _road_ends(scan, far_m: float, p: ScanJunctionParams) -> bool | None:
         return None if scan.y[-1] - far_m < p.dead_ahead_m else False
     if scan.y[-1] - far_m >= p.dead_ahead_m:
         return False
-    return _ends_at_last_row(scan)
-
-
-def _ends_at_last_row(scan) -> bool | None:
-    """Is the ground seen beyond the scan's last row (3 m deep, 5 m either side) free of road?
-    None where too little of it is seen to tell."""
     y_end = float(scan.y[-1])
     x_mid = float(0.5 * (scan.edge_l[-1] + scan.edge_r[-1]))
     road, vis = scan.region(x_mid - 5.0, x_mid + 5.0, y_end + 0.5, y_end + 3.5)
@@ -342,15 +330,6 @@ def _ends_at_last_row(scan) -> bool | None:
     if vis.sum() < 0.5 * 30.0 * k:
         return None
     return bool(road[vis].mean() < 0.1)
-
-
-def road_end_m(scan) -> float | None:
-    """Where the road straight ahead visibly ends (the scan lost the road at its last row and
-    sees ground beyond it, none of it road), or None: the road goes on, leaves the view, or too
-    little is seen to tell."""
-    if scan is None or len(scan.y) < 4 or scan.stop != "lost":
-        return None
-    return float(scan.y[-1]) if _ends_at_last_row(scan) else None
 
 
 def _opening(scan, rows: np.ndarray, beyond: np.ndarray, view: np.ndarray, ok: np.ndarray,

@@ -249,35 +249,6 @@ def test_an_opening_whose_near_end_is_outside_the_view_is_planned_once_in_view()
     assert _approach(Behaviour(), lane, 16.0, cut=True) != "junction-right"  # not yet: too far to plan
 
 
-def test_a_side_road_seen_before_a_visible_dead_end_is_taken_once_out_of_view():
-    # A T reached along its through road, straight on a one-tile stub: seen askew out of a lane
-    # shift the side road showed closed only far off, then open, then (beside it) not at all,
-    # and the car drove on into the stub's end. The side road is remembered in the odometry
-    # frame and taken once the road ahead is seen to end just past it.
-    ys = np.arange(3.5, 12.0, 0.5)
-    lane = LaneEstimate("test", True, lane_width_m=4.0, path_m=np.column_stack([np.zeros_like(ys), ys]))
-
-    def drive_on(end_m):
-        b, states = Behaviour(), []
-        for i in range(40):
-            y = 0.25 * i  # the car's odometer; the side road spans 13-17 m from the start
-            left = Opening(13.0 - y, 17.0 - y, True, dead=False) if i < 4 else None  # closed from far off only
-            view = JunctionView(left, None, None, end_m=(21.0 - y) if end_m and i >= 12 else None)
-            states.append(b.step(0.05 * i, OdoPose(0.0, y), y, 3.0, lane, view, two_lane=False)[2])
-        return b, states
-
-    b, states = drive_on(end_m=True)
-    assert states[-1] == "junction-left" and [d["turn"] for d in b.decisions] == ["left"]
-    # planned late (the arc begins within recall_lead_m), from the remembered place: its centre
-    centre = b.decisions[0]["odo_m"] + b.decisions[0]["near_m"] + 2.0
-    assert centre == pytest.approx(15.0, abs=0.3)
-    r = BehaviourParams().kerbed_radius_m
-    assert 15.0 - b.decisions[0]["odo_m"] - r <= BehaviourParams().recall_lead_m + 0.3
-    # with no road end in view the side road alone (never seen with its way on judged) is no turn
-    b, states = drive_on(end_m=False)
-    assert not b.decisions and "junction-left" not in states
-
-
 def test_out_of_a_kerbed_turn_the_exit_roads_lane_takes_over_from_the_planned_tail():
     # The planned turn's straight tail ran on 12 m out of its arc: one tile on, the exit road
     # shifted sideways (a lane shift) and the car, still on its tail, touched the kerb. Past
