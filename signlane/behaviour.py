@@ -63,6 +63,7 @@ class BehaviourParams:
     # (1/m; a 25 m circle): a bend (its outer side looks like road ending, its inner like an
     # opening), left to the lane follower. The lane at a junction runs straight up to it
     bend_not_junction: float = 0.04
+    handover_offset: float = 0.5  # out of a kerbed turn's arc, the lane takes over when the car is this near its middle (lane widths)
 
 
 @dataclass
@@ -90,6 +91,7 @@ class Behaviour:
         self._epoch = 0  # junctions passed
         self.signs: list[SignMemory] = []
         self.path: np.ndarray | None = None  # junction path, odometry frame
+        self._arc_end: np.ndarray | None = None  # where a turn's arc ends on it
         self._seen_path: np.ndarray | None = None  # the lane's centre line last traced, odometry frame
         self.turn = ""
         self.stop_sign: SignMemory | None = None
@@ -153,7 +155,7 @@ class Behaviour:
         if self.path is None and junction is not None and odo_m > self.cooldown_until_m:
             self._plan_junction(pose, lane, junction, odo_m)
         if self.path is not None:
-            steering, throttle, state = self._junction_step(pose, odo_m, speed)
+            steering, throttle, state = self._junction_step(pose, odo_m, speed, lane)
             stop = self._stop(t, pose, speed)  # a stop sign before the junction still holds
             if stop is not None and stop[0] / self.p.max_speed <= throttle:
                 return steering, stop[0] / self.p.max_speed, stop[1]
@@ -298,7 +300,8 @@ class Behaviour:
                 if all(m is not sign for m in self.signs):
                     self.signs.append(sign)  # (dropped once it was dealt with and passed)
                 return True
-        return bool(self._dead.get(plan["turn"]))
+        # (a turn planned as the least dead of ways all judged dead is not news when judged so again)
+        return bool(self._dead.get(plan["turn"])) and not plan["dead_at_plan"]
 
     def _plan_junction(self, pose: OdoPose, lane: LaneEstimate, j: JunctionView, odo_m: float = 0.0) -> bool:
         exits = self._exits(j)
@@ -327,7 +330,8 @@ class Behaviour:
                                "turn": self.turn, "near_m": round(near, 1),
                                "dead": sorted(n for n, d in self._dead.items() if d)})
         self._plan = {"odo_m": odo_m, "until_m": odo_m + max(near - self.p.replan_margin_m, 0.0), "far_m": far,
-                      "sign": sign.label if sign else None, "memory": sign, "turn": self.turn}
+                      "sign": sign.label if sign else None, "memory": sign, "turn": self.turn,
+                      "dead_at_plan": bool(self._dead.get(self.turn))}
         if self.turn == "straight" and not self.two_lane:
             # a kerbed carriageway's edges carry on across a junction (the far edge stands in
             # for the open one): keep following it, and judge no junction until past this one
@@ -338,15 +342,25 @@ class Behaviour:
         if lane.found:  # laid along the road, not along the car (heading > 0: the car points right of it)
             path = _rotate(path, lane.heading)
         self.path = pose.to_world(path)
+        # where the turn's arc ends (its straight tail follows): past it, the exit road's own lane
+        self._arc_end = self.path[-len(_TAIL_X) - 1] if self.turn != "straight" else None
         self._seen_path = None  # traced before the junction: not the way out of it
         self.follow.reset()
         return True
 
-    def _junction_step(self, pose: OdoPose, odo_m: float, speed: float) -> tuple[float, float, str]:
+    def _junction_step(self, pose: OdoPose, odo_m: float, speed: float, lane: LaneEstimate
+                       ) -> tuple[float, float, str]:
         car = pose.to_car(self.path)
         ahead = np.flatnonzero(car[:, 1] > 0.5)
         remaining = np.hypot(*np.diff(self.path[ahead[0]:], axis=0).T).sum() if len(ahead) else 0.0
-        if not len(ahead) or remaining < 5.0:
+        # out of a turn on a kerbed carriageway its edges lead on, once the car is past the arc
+        # and sees itself inside them: the tail laid straight out of the arc runs into whatever
+        # the exit road does next (a lane shift one tile on: its lane then points well askew, so
+        # it is the offset, not the heading, that says the edges are the exit road's). (Painted
+        # lanes are left to the tail: which lane is found first out of a junction is less sure.)
+        out_of_arc = (not self.two_lane and self._arc_end is not None and lane.found
+                      and pose.to_car(self._arc_end[None])[0, 1] < 0.0 and abs(lane.offset) <= self.p.handover_offset)
+        if not len(ahead) or remaining < 5.0 or out_of_arc:
             self.path = None
             self.cooldown_until_m = odo_m + 6.0
             return 0.0, self.p.approach_speed / self.p.max_speed, "cruise"
@@ -356,6 +370,9 @@ class Behaviour:
         steering = self.follow.steer_to(float(car[i, 0]), float(car[i, 1]))
         v = self.p.junction_speed if self.turn != "straight" else self.p.approach_speed
         return steering, v / self.p.max_speed, f"junction-{self.turn}"
+
+
+_TAIL_X = np.arange(0.25, 12.0, 0.25)  # a turn's straight tail out of its arc, metres
 
 
 def _rotate(path: np.ndarray, heading: float) -> np.ndarray:
@@ -370,18 +387,22 @@ def _junction_path(turn: str, y_c: float, lateral_m: float, p: BehaviourParams, 
     (lateral_m: the lane centre's x) to the chosen exit lane, sampled every 0.25 m. On a
     two-lane road the exit lane is the right one of the side road; on a kerbed carriageway its
     middle, reached with the same radius either way."""
-    h = p.lane_width_m / 2 if two_lane else 0.0
     if turn == "straight":
         ys = np.arange(0.0, y_c + 10.0, 0.25)
         return np.column_stack([np.full_like(ys, lateral_m), ys])
-    if turn == "right":
-        r, y_exit, sgn = (p.right_radius_m if two_lane else p.kerbed_radius_m), y_c - h, 1.0
-    else:
-        r, y_exit, sgn = (p.left_radius_m if two_lane else p.kerbed_radius_m), y_c + h, -1.0
+    r, y_exit, sgn = _turn(turn, y_c, p, two_lane)
     y0 = max(y_exit - r, 0.5)
     lead = np.column_stack([np.full(int(y0 / 0.25) + 1, lateral_m), np.linspace(0, y0, int(y0 / 0.25) + 1)])
     a = np.linspace(0, math.pi / 2, max(8, int(r * math.pi / 2 / 0.25)))
     arc = np.column_stack([lateral_m + sgn * r * (1 - np.cos(a)), y0 + r * np.sin(a)])
-    tail_x = np.arange(0.25, 12.0, 0.25)
-    tail = np.column_stack([arc[-1, 0] + sgn * tail_x, np.full_like(tail_x, arc[-1, 1])])
+    tail = np.column_stack([arc[-1, 0] + sgn * _TAIL_X, np.full_like(_TAIL_X, arc[-1, 1])])
     return np.concatenate([lead, arc, tail])
+
+
+def _turn(turn: str, y_c: float, p: BehaviourParams, two_lane: bool) -> tuple[float, float, float]:
+    """(radius, the exit lane's y, +1 right / -1 left) of a turn at a junction centred y_c ahead."""
+    h = p.lane_width_m / 2 if two_lane else 0.0
+    if turn == "right":
+        return (p.right_radius_m if two_lane else p.kerbed_radius_m), y_c - h, 1.0
+    return (p.left_radius_m if two_lane else p.kerbed_radius_m), y_c + h, -1.0
+

@@ -249,6 +249,28 @@ def test_an_opening_whose_near_end_is_outside_the_view_is_planned_once_in_view()
     assert _approach(Behaviour(), lane, 16.0, cut=True) != "junction-right"  # not yet: too far to plan
 
 
+def test_out_of_a_kerbed_turn_the_exit_roads_lane_takes_over_from_the_planned_tail():
+    # The planned turn's straight tail ran on 12 m out of its arc: one tile on, the exit road
+    # shifted sideways (a lane shift) and the car, still on its tail, touched the kerb. Past
+    # the arc, inside the exit road's edges, the carriageway's lane leads on.
+    ys = np.arange(3.5, 12.0, 0.5)
+    lane = LaneEstimate("test", True, lane_width_m=4.0, path_m=np.column_stack([np.zeros_like(ys), ys]))
+    lost = LaneEstimate("test", False)
+
+    def turned(exit_lane):
+        b = Behaviour()
+        for i in range(3):  # a T reached along its stem, its right arm a stub: a forced left
+            view = JunctionView(Opening(6.0, 10.0, True, dead=False), Opening(6.0, 10.0, True, dead=True), False,
+                                straight_dead=True)
+            state = b.step(0.1 * i, OdoPose(0.0, 0.0), 0.0, 3.0, lane, view, two_lane=False)[2]
+        assert state == "junction-left"
+        x, y = b._arc_end + np.array([-0.5, 0.0])  # just past the arc, heading west along the exit road
+        return b.step(1.0, OdoPose(float(x), float(y), math.pi), 10.0, 3.0, exit_lane, None, two_lane=False)[2]
+
+    assert turned(lane) == "cruise"
+    assert turned(lost) == "junction-left"  # nothing to hand over to: the tail leads on
+
+
 def _junction_centre_ahead(route: Route, leg) -> float:
     """Arc length from a junction leg's start to the junction's centre (its pivot cell)."""
     centre = route.track.cell_centre((leg.tile.col, leg.tile.row))
