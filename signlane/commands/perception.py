@@ -13,9 +13,15 @@ from signlane.commands.common import UserError, add_config_args, load_config, pi
 def add_infer(sub) -> None:
     p = sub.add_parser("infer", help="run the pipeline on images, folders and videos",
                        description="Run lane detection, sign proposals and steering on images, folders of "
-                                   "images/videos, and video files. Writes annotated images/videos with --out and "
-                                   "one JSON object per frame with --json FILE ('-' for stdout). A bad input gets "
-                                   "one error line; the rest still runs; the exit code is 1 if any input failed.")
+                                   "images/videos, and video files. Writes annotated images/videos (and a contact "
+                                   "sheet <stem>_sheet.png per video) with --out and one JSON object per frame with "
+                                   "--json FILE ('-' for stdout). The camera need not be measured: each input's pitch "
+                                   "and height are estimated from its own frames (the vanishing point of the road's "
+                                   "lines; a video's first 48 frames) and the summary reports them; the field of view "
+                                   "stays camera.hfov_deg. Setting camera.pitch_deg, camera.height_m or "
+                                   "camera.roll_deg (or camera.estimate=off) uses the configured camera instead. A bad "
+                                   "input gets one error line; the rest still runs; the exit code is 1 if any input "
+                                   "failed.")
     p.add_argument("paths", nargs="+", help="image files, video files or folders")
     p.add_argument("--out", type=Path, help="folder for annotated images/videos (and masks)")
     p.add_argument("--json", dest="json_path", metavar="FILE", help="write per-frame JSON lines here ('-' = stdout)")
