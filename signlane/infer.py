@@ -158,6 +158,9 @@ class Writer:
             mask = p.lane.debug_mask if p.lane.debug_mask is not None else np.zeros((h, w), np.uint8)
             name = f"{stem}_lane.png" if src.kind == "image" else f"{stem}_{index:06d}_lane.png"
             write_image(self.out / name, (mask > 0).astype(np.uint8) * 255)
+            if p.lane.drivable_mask is not None:  # the method has a road output
+                write_image(self.out / name.replace("_lane.png", "_drivable.png"),
+                            (p.lane.drivable_mask > 0).astype(np.uint8) * 255)
 
     def end_source(self, ok: bool) -> None:
         if self._video is not None:
@@ -238,6 +241,8 @@ def _run_source(src: Source, pipe: Pipeline, writer: Writer, summary: Summary, p
         if pipe.config.camera.estimate == "auto":
             # the input's own camera, measured on its first frames, reads all of them
             head, failure = _head(frames, ESTIMATE_FRAMES)
+            if not head and failure is not None:
+                raise failure  # unreadable: no camera to speak of
             choice = choose_camera(head, pipe.config.camera)
             pipe.use_camera(choice.camera)
             summary.cameras.append((src.path.name, choice))

@@ -29,7 +29,9 @@ def add_infer(sub) -> None:
                    help="lane method: auto (default: road-edges on a kerbed carriageway such as VIA's, "
                         "sliding-window on painted lanes), road-edges, sliding-window, canny-scan, color-hough, "
                         "vector-spline, segnet (learned; --save-masks then writes its marking mask)")
-    p.add_argument("--save-masks", action="store_true", help="write <stem>_lane.png (0/255) beside each annotated image")
+    p.add_argument("--save-masks", action="store_true", help="write <stem>_lane.png (0/255) beside each annotated image, and <stem>_drivable.png "
+                        "(the road surface, 0/255) where the method has a road output (segnet with a road model, "
+                        "road-edges, auto on a kerbed road)")
     p.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bars")
     p.add_argument("--max-pixels", type=pixels_arg, default=4096 * 4096, metavar="WxH",
                    help="refuse images and video frames with more pixels than this, read from the file's header "

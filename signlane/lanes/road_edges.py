@@ -71,6 +71,11 @@ class RoadEdgesState:
         return replace(self, scan=None)
 
 
+def road_edges_bev(cam: Camera, p: RoadEdgesParams, state: RoadEdgesState) -> BirdsEye:
+    """The bird's-eye view the carriageway is scanned in (kept in the state while the camera is)."""
+    return _bev(cam, p, state)
+
+
 def _bev(cam: Camera, p: RoadEdgesParams, state: RoadEdgesState) -> BirdsEye:
     if state.bev is not None and state.bev.camera == cam:
         return state.bev
@@ -283,7 +288,12 @@ def carriageway_estimate(method: str, cam: Camera, left, right, width: float, st
     debug = mask if mask is not None else np.zeros(shape, np.uint8)
     est = estimate_from_fits(method, cam, left, right, width, None, debug)
     path = centre_path(state.scan) if est.found else None
-    return replace(est, basis="edges", path_m=path)
+    return replace(est, basis="edges", path_m=path, drivable_mask=mask)
+
+
+def fit_edge(g: np.ndarray, p: RoadEdgesParams):
+    """A carriageway edge fitted to its scanned points (N, 2) ground metres (None: too few)."""
+    return _fit(g, p)
 
 
 def _fit(g: np.ndarray, p: RoadEdgesParams):
