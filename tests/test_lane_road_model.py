@@ -136,3 +136,23 @@ def test_autolabel_writes_road_masks_that_match_the_truth(road_model):
         labelled = ids != IGNORE
         assert labelled.mean() > 0.2 and set(np.unique(ids)) <= {0, 1, IGNORE}
         assert ((ids == 1) == truth)[labelled].mean() > 0.95
+
+
+def test_segnet_edges_keep_the_right_half_of_a_road_with_a_centre_line():
+    """A painted two-lane road given as the network's maps (its true road and paint) but with no
+    paint lane found: over a few frames the middle shows the centre line, and the lane is the
+    right half of the carriageway, the truth's ego lane."""
+    from signlane.camera import Camera
+    from signlane.world.sampling import DriveSampler
+    d = DriveSampler(3, SamplerConfig(320, 240, effects="clean", randomise=False), fps=10)
+    d.camera = Camera(320, 240)
+    state, errors = RoadEdgesState(), []
+    for i in range(12):
+        smp = d.sample(i)
+        road = (smp.truth.drivable_mask > 0).astype(np.float32)
+        paint = (smp.truth.marking_mask > 0).astype(np.float32)
+        est, state = _from_edges(road, _output_to_frame(road.shape, 320, 240), d.camera, SegNetParams(), state,
+                                 np.zeros((240, 320), np.uint8), smp.truth.drivable_mask, paint)
+        if i >= 6:
+            errors.append(abs(est.offset - smp.truth.offset) if est.found else 1.0)
+    assert state.two_lane and max(errors) < 0.15, errors

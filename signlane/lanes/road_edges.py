@@ -303,6 +303,16 @@ def _fit(g: np.ndarray, p: RoadEdgesParams):
     return fit_boundary(g, order=2, min_points=p.min_rows)
 
 
+def centre_paint(bright: np.ndarray, bev: BirdsEye, scan: RoadScan, p: RoadEdgesParams,
+                 memory: float | None) -> float | None:
+    """The running share of the carriageway's middle that shows paint (`bright`: bool bird's-eye
+    paint mask), updated with this frame where it saw both edges well enough."""
+    paint = _centre_paint(bright, bev, scan, p)
+    if paint is None:
+        return memory
+    return paint if memory is None else p.paint_memory * memory + (1 - p.paint_memory) * paint
+
+
 def _centre_paint(bright: np.ndarray, bev: BirdsEye, scan: RoadScan, p: RoadEdgesParams) -> float | None:
     """Share of rows (with both edges) whose middle band holds bright paint, or None."""
     both = scan.ok_l & scan.ok_r

@@ -14,7 +14,8 @@ A road model (seg_model.ROAD_CLASSES) also gives P(road surface). Where the pain
 (VIA's kerbed carriageway has none; worn or hidden paint), the drivable area warped into the
 road-edges bird's-eye view is scanned for the carriageway's edges as `road-edges` scans its
 colour mask (`road_edges.scan_edges`), and the lane is the carriageway, the car keeping its
-middle: `LaneEstimate.basis` is then "edges" (else "paint"), and `drivable_mask` carries the
+middle (on a road whose middle has shown a centre line, the right half of it, as `auto` does):
+`LaneEstimate.basis` is then "edges" (else "paint"), and `drivable_mask` carries the
 road at the frame's size (`infer --save-masks` writes it as <stem>_drivable.png).
 """
 from __future__ import annotations
@@ -27,9 +28,9 @@ import numpy as np
 from signlane.camera import BirdsEye, Camera
 from signlane.lanes import register
 from signlane.lanes import seg_model
-from signlane.lanes.geometry import camera_for
-from signlane.lanes.road_edges import (RoadEdgesParams, RoadEdgesState, carriageway_estimate, fit_edge,
-                                       road_edges_bev, scan_edges)
+from signlane.lanes.geometry import Boundary, camera_for, estimate_from_fits
+from signlane.lanes.road_edges import (RoadEdgesParams, RoadEdgesState, carriageway_estimate, centre_paint,
+                                       fit_edge, road_edges_bev, scan_edges)
 from signlane.lanes.sliding_window import SlidingWindowParams, SlidingWindowState, lanes_from_binary
 from signlane.types import LaneEstimate
 
@@ -91,13 +92,16 @@ def segnet(image_bgr: np.ndarray, camera: Camera | None, params: SegNetParams,
     est = replace(est, drivable_mask=drivable)
     if est.found:
         return est, SegNetState(paint_state, state.road)
-    edges, road_state = _from_edges(road[0], to_frame, cam, params, state.road, debug, drivable)
+    edges, road_state = _from_edges(road[0], to_frame, cam, params, state.road, debug, drivable, prob)
     return edges, SegNetState(paint_state, road_state)
 
 
 def _from_edges(road_prob: np.ndarray, to_frame: np.ndarray, cam: Camera, params: SegNetParams,
-                state: RoadEdgesState, debug: np.ndarray, drivable: np.ndarray) -> tuple[LaneEstimate, RoadEdgesState]:
-    """The carriageway between the drivable area's edges (road-edges' scan on the network's road)."""
+                state: RoadEdgesState, debug: np.ndarray, drivable: np.ndarray,
+                marking_prob: np.ndarray | None = None) -> tuple[LaneEstimate, RoadEdgesState]:
+    """The lane from the drivable area's edges (road-edges' scan on the network's road): the
+    carriageway, or, on a road whose middle has shown a centre line over the frames (the
+    network's marking map there, as road-edges measures it), its right half."""
     p = params.road
     bev = road_edges_bev(cam, p, state)
     visible = bev.visible() > 0
@@ -108,7 +112,16 @@ def _from_edges(road_prob: np.ndarray, to_frame: np.ndarray, cam: Camera, params
     left = fit_edge(np.column_stack([scan.run_l, scan.y])[scan.ok_l], p)
     right = fit_edge(np.column_stack([scan.run_r, scan.y])[scan.ok_r], p)
     good = left is not None and right is not None and p.min_width_m < scan.width_m < p.max_width_m
-    new = replace(state, width_m=scan.width_m if good else state.width_m, bev=bev, scan=scan)
+    memory = state.centre_paint
+    if good and marking_prob is not None:
+        paint = cv2.warpPerspective(marking_prob, bev.image_to_bev_h() @ to_frame, bev.size,
+                                    flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT) > params.threshold
+        memory = centre_paint(paint & visible, bev, scan, p, memory)
+    new = replace(state, width_m=scan.width_m if good else state.width_m, bev=bev, scan=scan, centre_paint=memory)
+    if new.two_lane and left is not None and right is not None:
+        mid = Boundary((left.coeffs + right.coeffs) / 2, left.y_range)
+        est = estimate_from_fits(NAME, cam, mid, right, scan.width_m / 2, 0.5, debug)
+        return replace(est, basis="edges", drivable_mask=drivable), new
     est = carriageway_estimate(NAME, cam, left, right, scan.width_m, new, None, debug.shape)
     return replace(est, debug_mask=debug, drivable_mask=drivable), new
 
