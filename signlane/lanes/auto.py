@@ -35,7 +35,10 @@ class AutoParams:
     # own kerbs, a carriageway apart, do not count) ...
     lane_confidence: float = 0.7
     lane_share: float = 0.88
-    lane_memory: float = 0.8  # ... averaged over frames with this weight on the past
+    lane_memory: float = 0.85  # ... averaged over frames with this weight on the past ...
+    # ... above this share, a lane road. Measured on 16 randomised VIA-style drives (seeds 20-35,
+    # 80 frames each): the share peaked at 0.28; on the real highway video it stays at 1
+    lanes_above: float = 0.7
     beside_road: float = 0.6  # ... and this share of a band beside one of its lines is road (another lane)
     settled_below: float = 0.1  # a road whose share is below this is looked at ...
     settled_every: int = 4  # ... every this many frames
@@ -84,7 +87,7 @@ def auto(image_bgr: np.ndarray, camera: Camera | None, params: AutoParams,
         inside = est.found and est.confidence >= params.lane_confidence and width > 0 \
             and est.lane_width_m < params.lane_share * width and _road_beside(est, road_state.scan, params)
         lanes_seen = _remember(state.lanes_seen, float(inside), params.lane_memory)
-        if lanes_seen > 0.5:
+        if lanes_seen > params.lanes_above:
             if est.found:
                 return replace(est, method=NAME, basis="paint"), AutoState(road_state, paint_state, lanes_seen)
             return replace(est, method=NAME), AutoState(road_state, paint_state, lanes_seen)
