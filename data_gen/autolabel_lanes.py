@@ -11,12 +11,19 @@ The mask is class ids (signlane.label_masks): 1 on that paint, 0 below and besid
 what lies beyond the lines it followed (sliding-window looks 8 m ahead, 16 m when that shows no
 line), so paint there is unknown, not background.
 
-Layout of `out/`: images/<id>.jpg, masks/<id>.png (ids 0/1/255), labels.jsonl (the lane contract;
+Beside the paint, each kept frame where `road-edges` finds both edges of the carriageway
+confidently gets a road-surface mask, drivable/<id>.png (ids: 1 road, 0 not, 255 outside what it
+looked at; its label gains "drivable"), so a road model learns the drivable area from the
+footage too. With camera.estimate "auto" each input's camera is measured from its own frames
+(signlane/camera_estimate.py), as `signlane infer` does.
+
+Layout of `out/`: images/<id>.jpg, masks/<id>.png (ids 0/1/255), drivable/<id>.png, labels.jsonl (the lane contract;
 "pseudo": {"method", "confidence"} added), sheet.png (kept frames; ignored rows darkened),
 rejected.png (a sample of the dropped ones), manifest.json (written last; "mask_encoding").
 """
 from __future__ import annotations
 
+import itertools
 import logging
 import sys
 from pathlib import Path
@@ -30,6 +37,8 @@ from signlane_data.lanes import JPEG_QUALITY, teacher_steering
 from signlane.draw import contact_sheet
 from signlane_data.preview import lane_overlay
 from signlane import label_masks, lanes
+from signlane.camera import Camera
+from signlane.camera_estimate import choose_camera
 from signlane.config import CameraConfig
 from signlane.media import MediaError, expand, iter_frames
 from signlane.types import LaneEstimate
@@ -37,6 +46,7 @@ from signlane.types import LaneEstimate
 log = logging.getLogger(__name__)
 SHEET_MAX = 48
 MIN_MASK_PX = 30  # a kept frame must have at least this much paint labelled
+ESTIMATE_FRAMES = 48  # an input's camera is measured on its first sampled frames (camera.estimate auto)
 
 
 def lane_record(sid: str, est: LaneEstimate, width: int, height: int, method: str) -> dict:
@@ -63,13 +73,21 @@ def autolabel_lanes(paths: list[str], out: str | Path, method: str = "sliding-wi
     sources, failed = expand(paths)
     for e in failed:
         print(f"signlane autolabel: {e}", file=sys.stderr)
-    records, kept_tiles, rejected_tiles, seen = [], [], [], 0
+    records, kept_tiles, rejected_tiles, seen, roads, cameras = [], [], [], 0, 0, {}
     for src in tqdm(sources, desc="autolabel lanes", unit="input", disable=not progress or len(sources) < 2):
         try:
-            for index, frame in iter_frames(src, every):
+            frames = iter_frames(src, every)
+            cam_cfg = camera
+            if camera.estimate == "auto":  # the input's own camera, as infer measures it
+                head = list(itertools.islice(frames, ESTIMATE_FRAMES))
+                choice = choose_camera([f for _, f in head], camera)
+                cam_cfg, cameras[str(src.path)] = choice.camera, choice.describe()
+                frames = itertools.chain(head, frames)
+            for index, frame in frames:
                 seen += 1
                 h, w = frame.shape[:2]
-                est = lanes.get(method, camera=camera.camera(w, h))(frame)  # fresh state: frames stand alone
+                cam = cam_cfg.camera(w, h)
+                est = lanes.get(method, camera=cam)(frame)  # fresh state: frames stand alone
                 mask = pseudo_mask(est.debug_mask if est.debug_mask is not None else np.zeros((h, w), np.uint8))
                 if not (est.found and est.confidence >= min_confidence and np.count_nonzero(mask == 1) >= MIN_MASK_PX):
                     if len(rejected_tiles) < SHEET_MAX:
@@ -79,6 +97,11 @@ def autolabel_lanes(paths: list[str], out: str | Path, method: str = "sliding-wi
                 atomic_imwrite(out / "images" / f"{sid}.jpg", frame, [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
                 atomic_imwrite(out / "masks" / f"{sid}.png", mask)
                 rec = lane_record(sid, est, w, h, method)
+                road = road_pseudo_mask(frame, cam, min_confidence)
+                if road is not None:
+                    atomic_imwrite(out / "drivable" / f"{sid}.png", road)
+                    rec["drivable"] = f"drivable/{sid}.png"
+                    roads += 1
                 records.append(rec)
                 if len(kept_tiles) < SHEET_MAX:
                     kept_tiles.append(lane_overlay(frame, mask, rec["lane"]))
@@ -90,12 +113,36 @@ def autolabel_lanes(paths: list[str], out: str | Path, method: str = "sliding-wi
     for name, tiles in (("sheet.png", kept_tiles), ("rejected.png", rejected_tiles)):
         if tiles:
             atomic_imwrite(out / name, contact_sheet(tiles, 6, (240, 180), list(_ids(records, name, len(tiles))), gap=0))
-    counts = {"seen": seen, "kept": len(records)}
+    counts = {"seen": seen, "kept": len(records), "drivable": roads}
     config = {"method": method, "min_confidence": min_confidence, "every": every, "camera": camera.__dict__,
-              "inputs": [str(p) for p in paths]}
+              "cameras": cameras, "inputs": [str(p) for p in paths]}
     write_manifest(out, "autolabel_lanes", 0, counts, config, **{label_masks.MANIFEST_KEY: label_masks.IDS})
     log.info("%s: kept %d of %d frames", out, len(records), seen)  # `signlane autolabel` says when none
     return {"counts": counts, "failed": failed}
+
+
+def road_pseudo_mask(frame: np.ndarray, cam: Camera, min_confidence: float) -> np.ndarray | None:
+    """The road surface as `road-edges` sees it, as ids, where it found both edges of the
+    carriageway with min_confidence: 1 on road-coloured ground between the edges it scanned, 0
+    on ground it saw that is not road-coloured and above the horizon (sky is no road), 255
+    elsewhere: road-coloured ground outside the edges (another lane, or a verge that looks like
+    road: it cannot tell) and ground outside its bird's-eye view or beyond the rows it scanned.
+    None when it is not confident (the frame then has no road label)."""
+    method = lanes.get("road-edges", camera=cam)
+    est = method(frame)
+    state = method.state
+    bev, scan = getattr(state, "bev", None), getattr(state, "scan", None)
+    if not (est.found and est.confidence >= min_confidence) or est.drivable_mask is None or bev is None \
+            or scan is None or len(scan.y) < 2:
+        return None
+    seen = bev.unwarp(np.full((bev.size[1], bev.size[0]), 255, np.uint8), cv2.INTER_NEAREST) > 0
+    outline = np.concatenate([np.column_stack([scan.edge_l, scan.y]), np.column_stack([scan.edge_r, scan.y])[::-1]])
+    between = np.zeros(frame.shape[:2], np.uint8)
+    cv2.fillPoly(between, [np.round(cam.ground_to_image(outline)).astype(np.int32)], 1)
+    road = est.drivable_mask > 0
+    on = road & seen & (between > 0)
+    ids = label_masks.encode(on, cam.ground_mask(0.0) & ~(seen & ~road) & ~on)
+    return ids
 
 
 def pseudo_mask(debug_mask: np.ndarray) -> np.ndarray:

@@ -6,7 +6,7 @@ import json
 from pathlib import Path
 
 from signlane_export.onnx_export import export_onnx, run_dir_of, training_info
-from signlane.lanes.seg_model import CLASSES, DEFAULT_SPEC, TASK
+from signlane.lanes.seg_model import CLASSES, DEFAULT_SPEC, ROAD_CLASSES, TASK
 from signlane.onnx_model import make_metadata
 
 
@@ -28,9 +28,13 @@ def export_lanes(ckpt: str | Path, out: str | Path, metrics: dict | None = None,
     run_report = run_dir_of(ckpt) / "report.json"
     scored = json.loads(run_report.read_text()) if run_report.exists() else {}
     metrics = {**info.get("metrics", {}), **{k: v for k, v in scored.items() if k.startswith("val_")}, **(metrics or {})}
-    meta = make_metadata(TASK, list(CLASSES), spec, info["data_hash"], metrics,
+    # a road model's classes say so: the runtime reads its second head from them (seg_model)
+    classes = list(ROAD_CLASSES if task.hparams.get("drivable", False) else CLASSES)
+    heads = {"lane_marking": [0, 1]} | ({"drivable": [2, 3]} if len(classes) == 4 else {})
+    meta = make_metadata(TASK, classes, spec, info["data_hash"], metrics,
                          {"arch": f"LaneSegNet width {task.hparams.width}", "checkpoint": ckpt.name,
-                          "output": json.dumps({"size": "input", "classes": list(CLASSES), "kind": "logits"})})
+                          "output": json.dumps({"size": "input", "classes": classes, "kind": "logits",
+                                                "heads": heads})})
     report = export_onnx(task.net, (1, 3, spec.height, spec.width), out, meta, tol=tol)
     report.update({"parameters": count_parameters(task.net), "data_hash": info["data_hash"], "metrics": metrics})
     return report

@@ -14,6 +14,11 @@ from typing import Any
 from signlane.camera import VIA_CAMERA_AHEAD_OF_AXLE_M, VIA_WHEELBASE_M, Camera
 
 
+# camera settings a user measures: giving any of them keeps the configured camera as it is
+# (camera.estimate off); the field of view is not among them, the estimate uses it
+MEASURED_CAMERA_KEYS = {"pitch_deg", "height_m", "roll_deg"}
+
+
 @dataclass(frozen=True)
 class CameraConfig:
     """The camera the images come from; size is taken from each image. The defaults are VIA's
@@ -28,6 +33,10 @@ class CameraConfig:
     # camera measures is this much further from the axle. VIA: 0.1 m ahead of the car's origin,
     # midway along its 1.957 m wheelbase
     forward_m: float = round(VIA_CAMERA_AHEAD_OF_AXLE_M, 2)  # metres from the rear axle forward to the camera
+    # infer on footage from an unknown camera: "auto" measures pitch and height from each input's
+    # own frames (signlane/camera_estimate.py) and uses them where its horizon disagrees with
+    # this camera's; "off" trusts these values. Setting pitch_deg, height_m or roll_deg turns it off
+    estimate: str = "auto"  # auto | off: measure pitch and height from the frames
 
     def camera(self, width: int = 320, height: int = 240) -> Camera:
         return Camera(width, height, self.hfov_deg, self.height_m, self.pitch_deg, self.roll_deg)
@@ -114,6 +123,7 @@ class Config:
     def load(cls, path: str | Path | None = None, overrides: list[str] | None = None) -> "Config":
         """Defaults, then the TOML file's tables, then `section.key=value` overrides."""
         cfg = cls()
+        given: set[str] = set()  # camera keys the file or --set gave
         if path is not None:
             p = Path(path)
             try:
@@ -123,11 +133,18 @@ class Config:
             except tomllib.TOMLDecodeError as e:
                 raise ValueError(f"{p}: invalid TOML ({e})") from None
             cfg = _merge(cfg, data, str(p))
+            if isinstance(data.get("camera"), dict):
+                given |= {k.replace("-", "_") for k in data["camera"]}
         for item in overrides or []:
             key, sep, value = item.partition("=")
             if not sep:
                 raise ValueError(f"--set {item!r}: expected section.key=value")
-            cfg = _merge(cfg, _nested(key.strip().split("."), _parse(value.strip())), f"--set {item}")
+            keys = key.strip().split(".")
+            cfg = _merge(cfg, _nested(keys, _parse(value.strip())), f"--set {item}")
+            if keys[0] == "camera" and len(keys) == 2:
+                given.add(keys[1].replace("-", "_"))
+        if given & MEASURED_CAMERA_KEYS and "estimate" not in given:
+            cfg = replace(cfg, camera=replace(cfg.camera, estimate="off"))  # what the user measured wins
         cfg.validate()
         return cfg
 
@@ -275,6 +292,7 @@ RANGES: dict[str, Range] = {
     "drive.lanes_width": Range(32, 8192, "px", off=0),
 }
 CHOICES: dict[str, tuple[str, ...]] = {
+    "camera.estimate": ("auto", "off"),
     "lanes.variant": ("robust", "published"),
     "signs.variant": ("robust", "published"),
 }

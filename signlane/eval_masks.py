@@ -5,7 +5,8 @@ and a true pixel is found when a predicted one lies within `tol` of it (the usua
 tolerance: a line one or two pixels off is still the line). Counts are summed over frames.
 Pixels without a label (a dataset's 255s, signlane.label_masks) count nowhere: a prediction
 there is neither right nor wrong. `iou` is the exact pixel IoU (no tolerance) over the labelled
-pixels.
+pixels. A road model (seg_model.ROAD_CLASSES) on a set with road masks (`drivable/<id>.png`,
+gen lanes --drivable) is also scored on the road surface: `drivable_iou`, exact pixel IoU.
 """
 from __future__ import annotations
 
@@ -56,6 +57,27 @@ class MaskCounts:
         return self.inter / max(self.union, 1)
 
 
+@dataclass
+class RoadCounts:
+    """Exact pixel IoU of a road-surface mask, summed over frames; ids 255 count nowhere."""
+
+    inter: int = 0
+    union: int = 0
+    frames: int = 0
+
+    def add(self, pred: np.ndarray, true_ids: np.ndarray) -> None:
+        """pred: uint8 or bool (H, W), nonzero = road; true_ids: uint8 (H, W) 0/1/255."""
+        known = true_ids != IGNORE
+        p, t = (pred > 0) & known, true_ids == 1
+        self.inter += int(np.count_nonzero(p & t))
+        self.union += int(np.count_nonzero(p | t))
+        self.frames += 1
+
+    @property
+    def iou(self) -> float:
+        return self.inter / max(self.union, 1)
+
+
 def eval_masks(data: str | Path, model: str | Path | None = None, tol: int = 2, threads: int = 2,
                progress: bool = True) -> dict:
     """The segmentation model's marking F1 within `tol` px, and exact IoU, on a lane dataset
@@ -68,7 +90,7 @@ def eval_masks(data: str | Path, model: str | Path | None = None, tol: int = 2, 
     if not labels.is_file():
         raise ValueError(f"{root}: no labels.jsonl (not a lane dataset)")
     encoding = dataset_encoding(root)
-    counts = MaskCounts()
+    counts, road = MaskCounts(), RoadCounts()
     recs = [json.loads(line) for line in labels.read_text().splitlines() if line.strip()]
     for rec in tqdm(recs, desc="eval masks", unit="frame", disable=not progress):
         img = cv2.imread(str(root / rec["image"]), cv2.IMREAD_COLOR)
@@ -77,7 +99,13 @@ def eval_masks(data: str | Path, model: str | Path | None = None, tol: int = 2, 
         true = read_mask(root / rec["mask"], encoding)
         if true.shape != img.shape[:2]:
             raise ValueError(f"{root / rec['mask']}: mask {true.shape} is not the image's size {img.shape[:2]}")
-        prob = seg.probabilities([img])[0]
-        counts.add(to_frame_mask(prob, img.shape[1], img.shape[0]), true == 1, tol, true == IGNORE)
-    return {"model": str(model or DEFAULT_MODEL), "data": str(root), "mask_encoding": encoding, "tolerance_px": tol,
-            **counts.summary(), "iou": counts.iou}
+        marking, drivable = seg.maps([img])
+        counts.add(to_frame_mask(marking[0], img.shape[1], img.shape[0]), true == 1, tol, true == IGNORE)
+        if drivable is not None and rec.get("drivable"):
+            road_true = read_mask(root / rec["drivable"], encoding)
+            road.add(to_frame_mask(drivable[0], img.shape[1], img.shape[0]), road_true)
+    out = {"model": str(model or DEFAULT_MODEL), "data": str(root), "mask_encoding": encoding, "tolerance_px": tol,
+           **counts.summary(), "iou": counts.iou}
+    if road.frames:
+        out.update({"drivable_iou": road.iou, "drivable_frames": road.frames})
+    return out

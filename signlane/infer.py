@@ -5,6 +5,7 @@ becomes 1. JSON records follow the contract in DESIGN.md.
 """
 from __future__ import annotations
 
+import itertools
 import json
 import sys
 from collections import Counter
@@ -17,8 +18,9 @@ import cv2
 import numpy as np
 from tqdm import tqdm
 
+from signlane.camera_estimate import CameraChoice, choose_camera
 from signlane.config import Config
-from signlane.draw import draw_boxes, draw_hud, draw_lane, write_image
+from signlane.draw import contact_sheet, draw_boxes, draw_hud, draw_lane, write_image
 from signlane.fileio import atomic_open_text, atomic_write_text
 from signlane.imagecheck import DEFAULT_MAX_PIXELS
 from signlane.media import MediaError, Source, expand, iter_video, read_image, video_info
@@ -28,6 +30,9 @@ from signlane.pipeline import Pipeline
 from signlane.types import Command, Frame, Perception
 
 LANE_FILL_BGR = (0, 160, 0)
+ESTIMATE_FRAMES = 48  # a video's camera is measured on its first frames (2 s at 25 fps)
+SHEET_TILES = 16  # a video's contact sheet (<stem>_sheet.png): this many frames spread over it
+SUMMARY_CAMERAS = 8  # the summary names each input's camera up to this many inputs
 
 
 @dataclass
@@ -37,6 +42,7 @@ class Summary:
     signs: Counter = field(default_factory=Counter)
     timing: dict[str, list[float]] = field(default_factory=dict)
     failed: list[str] = field(default_factory=list)
+    cameras: list[tuple[str, CameraChoice]] = field(default_factory=list)  # (input, its camera)
 
     def add(self, p: Perception) -> None:
         self.frames += 1
@@ -49,9 +55,23 @@ class Summary:
         rows = [("frames", str(self.frames)),
                 ("lanes found", f"{100.0 * self.lanes_found / max(self.frames, 1):.1f} %"),
                 ("inputs failed", str(len(self.failed)))]
+        rows += self._camera_rows()
         rows += [(f"signs: {k}", str(v)) for k, v in sorted(self.signs.items())]
         rows += [(f"ms {k} (median)", f"{np.median(v):.2f}") for k, v in self.timing.items()]
         return pairs(rows)
+
+
+    def _camera_rows(self) -> list[tuple[str, str]]:
+        if not self.cameras:
+            return []
+        if len(self.cameras) <= SUMMARY_CAMERAS:
+            return [(f"camera: {name}", choice.describe()) for name, choice in self.cameras]
+        used = [c for _, c in self.cameras if c.used]
+        row = f"estimated for {len(used)} of {len(self.cameras)} inputs"
+        if used:
+            row += (f"; median pitch {np.median([c.camera.pitch_deg for c in used]):+.1f} deg, "
+                    f"height {np.median([c.camera.height_m for c in used]):.2f} m")
+        return [("camera", row)]
 
 
 def record(source: str, index: int, p: Perception, cmd: Command) -> dict:
@@ -105,10 +125,17 @@ class Writer:
     def __init__(self, out: Path | None, save_masks: bool, json_stream: IO[str] | None):
         self.out, self.save_masks, self.json = out, save_masks, json_stream
         self._video: VideoOut | None = None
+        self._sheet: list[tuple[int, np.ndarray]] = []  # a video's frames for its contact sheet
+        self._sheet_every, self._sheet_path = 1, None
+        self.camera: dict | None = None  # the current input's camera, when infer measured it
+
 
     def frame(self, src: Source, index: int, p: Perception, cmd: Command) -> None:
         if self.json is not None:
-            self.json.write(json.dumps(record(str(src.path), index, p, cmd)) + "\n")
+            rec = record(str(src.path), index, p, cmd)
+            if self.camera is not None:
+                rec["camera"] = self.camera
+            self.json.write(json.dumps(rec) + "\n")
         if self.out is None:
             return
         stem = src.path.stem
@@ -119,19 +146,30 @@ class Writer:
         else:
             if self._video is None:
                 h, w = image.shape[:2]
-                fps = video_info(src.path)[0]
+                fps, count = video_info(src.path)
                 self._video = VideoOut(self.out / f"{stem}.mp4", fps if fps > 0 else 30.0, (w, h))  # 0: not stated
+                self._sheet_every = max(1, (count or 1) // SHEET_TILES)
+                self._sheet, self._sheet_path = [], self.out / f"{stem}_sheet.png"
             self._video.write(image)
+            if index % self._sheet_every == 0 and len(self._sheet) < SHEET_TILES:
+                self._sheet.append((index, image))
         if self.save_masks:
             h, w = p.frame.image_bgr.shape[:2]
             mask = p.lane.debug_mask if p.lane.debug_mask is not None else np.zeros((h, w), np.uint8)
             name = f"{stem}_lane.png" if src.kind == "image" else f"{stem}_{index:06d}_lane.png"
             write_image(self.out / name, (mask > 0).astype(np.uint8) * 255)
+            if p.lane.drivable_mask is not None:  # the method has a road output
+                write_image(self.out / name.replace("_lane.png", "_drivable.png"),
+                            (p.lane.drivable_mask > 0).astype(np.uint8) * 255)
 
     def end_source(self, ok: bool) -> None:
         if self._video is not None:
             if ok:
                 self._video.close()
+                if self._sheet:
+                    tile = (480, round(480 * self._sheet[0][1].shape[0] / self._sheet[0][1].shape[1]))
+                    write_image(self._sheet_path, contact_sheet([im for _, im in self._sheet], cols=4, tile=tile,
+                                                                captions=[f"frame {i}" for i, _ in self._sheet]))
             else:
                 self._video.discard()
             self._video = None
@@ -174,6 +212,24 @@ def run_infer(paths: list[str], config: Config, out: Path | None = None, json_pa
     return summary
 
 
+def _head(frames: Iterator[np.ndarray], n: int) -> tuple[list[np.ndarray], MediaError | None]:
+    """The first n frames, and the error that ended the input sooner (its frames still count)."""
+    head: list[np.ndarray] = []
+    try:
+        for img in frames:
+            head.append(img)
+            if len(head) == n:
+                break
+    except MediaError as e:
+        return head, e
+    return head, None
+
+
+def _raising(error: Exception) -> Iterator[np.ndarray]:
+    raise error
+    yield  # a generator: raises where the frames would go on
+
+
 def _run_source(src: Source, pipe: Pipeline, writer: Writer, summary: Summary, progress: bool,
                 max_pixels: int) -> bool:
     pipe.reset()
@@ -182,6 +238,16 @@ def _run_source(src: Source, pipe: Pipeline, writer: Writer, summary: Summary, p
         frames = tqdm(frames, total=video_info(src.path)[1] or None, desc=src.path.name, unit="frame",
                       leave=False, file=sys.stderr)
     try:
+        if pipe.config.camera.estimate == "auto":
+            # the input's own camera, measured on its first frames, reads all of them
+            head, failure = _head(frames, ESTIMATE_FRAMES)
+            if not head and failure is not None:
+                raise failure  # unreadable: no camera to speak of
+            choice = choose_camera(head, pipe.config.camera)
+            pipe.use_camera(choice.camera)
+            summary.cameras.append((src.path.name, choice))
+            writer.camera = choice.to_dict()
+            frames = itertools.chain(head, _raising(failure) if failure is not None else frames)
         for i, img in enumerate(frames):
             p, cmd = pipe.step(Frame(img, seq=i))
             summary.add(p)

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import time
 
-from signlane.config import Config
+from signlane.config import CameraConfig, Config
 from signlane.control import ThrottlePolicy, make_controller
 from signlane.drive.perception import PerceptionStack
 from signlane.types import Command, Frame, Perception, SignDetection
@@ -32,7 +32,7 @@ class Pipeline:
     def step(self, frame: Frame, speed: float = 0.0) -> tuple[Perception, Command]:
         h, w = frame.image_bgr.shape[:2]
         if self._camera_size != (w, h):
-            self._controller = make_controller(self.config.control.controller, self.config.camera.camera(w, h))
+            self._controller = make_controller(self.config.control.controller, self.camera.camera(w, h))
             self._camera_size = (w, h)
         timing: dict[str, float] = {}
         t0 = time.perf_counter()
@@ -48,6 +48,16 @@ class Pipeline:
         throttle, state = self._throttle.throttle(lane)
         timing["control"] = (time.perf_counter() - t2) * 1e3
         return Perception(frame, lane, signs, timing), Command(steering, throttle, state)
+
+    def use_camera(self, camera: CameraConfig) -> None:
+        """Read the frames to come with this camera (infer measures each input's own)."""
+        self.perception.use_camera(camera)
+        self._camera_size = None  # the controller is rebuilt for it on the next frame
+
+    @property
+    def camera(self) -> CameraConfig:
+        """The camera the frames are read with now."""
+        return self.perception.config.camera
 
     def reset(self) -> None:
         """Forget tracking state (a new video or a jump in time)."""

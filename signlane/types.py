@@ -39,6 +39,9 @@ class LaneEstimate:
     # the lane's centre line as the method traced it, ground metres (x right, y ahead), near to
     # far, or None: followed directly where a fitted curve cannot bend as tightly as the road
     path_m: np.ndarray | None = None
+    # uint8 (H, W) 0/255 road surface at the frame's size, from a method with a road output
+    # (segnet's road model, road-edges), else None
+    drivable_mask: np.ndarray | None = None
 
 
 @dataclass(frozen=True)

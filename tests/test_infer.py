@@ -42,7 +42,9 @@ def test_images_folder_json_and_annotated_output(tmp_path, road_frames, capsys):
     code, stdout, err = _run([folder, "--out", out, "--json", "-", "--save-masks"], capsys)
     assert code == 0, err
     recs = [json.loads(line) for line in stdout.splitlines()]
-    assert len(recs) == 3 and all(set(r) == KEYS and set(r["lane"]) == LANE_KEYS for r in recs)
+    # the contract's keys, and the camera infer measured the frames with (VIA's: they agree with it)
+    assert len(recs) == 3 and all(set(r) == KEYS | {"camera"} and set(r["lane"]) == LANE_KEYS for r in recs)
+    assert not any(r["camera"]["estimated"] for r in recs)
     assert sum(r["lane"]["confidence"] == 1.0 for r in recs) >= 2
     for r, smp in zip(recs, road_frames):
         assert r["width"] == 320 and r["height"] == 240
@@ -71,8 +73,9 @@ def test_painted_lanes_from_another_camera_given_with_set(tmp_path, painted_fram
     assert len(recs) == 3
     for r, smp in zip(recs, painted_frames):
         assert r["lane"]["found"] and abs(r["lane"]["offset"] - smp.truth.offset) < 0.15
-    # with VIA's camera assumed instead, the same frames read off (the camera matters)
-    code, stdout, _ = _run([tmp_path, "--json", "-"], capsys)
+    # with VIA's camera assumed instead, the same frames read off (the camera matters; without
+    # camera.estimate=off infer measures it: tests/test_camera_estimate.py)
+    code, stdout, _ = _run([tmp_path, "--json", "-", "--set", "camera.estimate=off"], capsys)
     wrong = [json.loads(line)["lane"] for line in stdout.splitlines()]
     assert max(abs(w["offset"] - smp.truth.offset) if w["found"] else 1.0
                for w, smp in zip(wrong, painted_frames)) > 0.15

@@ -7,6 +7,9 @@ binary 0/255 and give the same ids). Albumentations run jointly on the uint8 BGR
 ids at the frame's size (the border an affine or perspective warp pads in is 255: no label);
 then the runtime's own `preprocess_frames` makes the input and `mask_target` the target (0, 1,
 255 = ignored by the loss and the metrics), so training sees exactly what the car's model will see.
+A frame with a road-surface mask (`drivable/<id>.png`: gen lanes --drivable, autolabel lanes)
+also gives a drivable target (`drivable_target`); a frame without one gives 255 (no label)
+there, so sets with and without road masks mix.
 """
 from __future__ import annotations
 
@@ -36,6 +39,7 @@ class Item:
     mask: Path
     key: str  # stable name for the train/val split
     encoding: str = BINARY  # of the mask file (signlane.label_masks), from its folder's manifest
+    drivable: Path | None = None  # the road-surface mask (ids 0/1/255), where the set has one
 
 
 def list_frames(roots: list[Path]) -> list[Item]:
@@ -49,10 +53,12 @@ def list_frames(roots: list[Path]) -> list[Item]:
         enc = dataset_encoding(root)
         if labels.is_file():
             found = [json.loads(line) for line in labels.read_text().splitlines() if line.strip()]
-            own = [Item(root / rec["image"], root / rec["mask"], f"{root.name}/{rec['id']}", enc) for rec in found]
+            own = [Item(root / rec["image"], root / rec["mask"], f"{root.name}/{rec['id']}", enc,
+                        root / rec["drivable"] if rec.get("drivable") else None) for rec in found]
             why = "labels.jsonl lists no frames"
         elif (root / "images").is_dir() and (root / "masks").is_dir():
-            own = [Item(img, root / "masks" / f"{img.stem}.png", f"{root.name}/{img.stem}", enc)
+            own = [Item(img, root / "masks" / f"{img.stem}.png", f"{root.name}/{img.stem}", enc,
+                        _drivable_file(root, img.stem))
                    for img in sorted((root / "images").iterdir())
                    if img.suffix.lower() in IMAGE_EXT and (root / "masks" / f"{img.stem}.png").is_file()]
             why = "no images/<stem> has a masks/<stem>.png"
@@ -62,6 +68,11 @@ def list_frames(roots: list[Path]) -> list[Item]:
             raise ValueError(f"{root}: an empty training set ({why}); leave it out or fill it")
         items += own
     return items
+
+
+def _drivable_file(root: Path, stem: str) -> Path | None:
+    f = root / "drivable" / f"{stem}.png"
+    return f if f.is_file() else None
 
 
 def train_augment(seed: int | None = None) -> A.Compose:
@@ -81,7 +92,7 @@ def train_augment(seed: int | None = None) -> A.Compose:
         A.OneOf([A.MotionBlur(blur_limit=(3, 7)), A.GaussianBlur(sigma_limit=(0.3, 1.5))], p=0.3),
         A.GaussNoise(std_range=(0.01, 0.08), p=0.35),
         A.ImageCompression(quality_range=(20, 95), p=0.4),
-    ], seed=seed)
+    ], seed=seed, additional_targets={"drivable": "mask"})
 
 
 def read_pair(item: Item) -> tuple[np.ndarray, np.ndarray]:
@@ -95,27 +106,57 @@ def read_pair(item: Item) -> tuple[np.ndarray, np.ndarray]:
     return img, mask
 
 
+def read_drivable(item: Item, shape: tuple[int, int]) -> np.ndarray:
+    """uint8 (H, W) road ids 0/1/255 of a frame: all 255 (no label) without a drivable mask."""
+    if item.drivable is None:
+        return np.full(shape, IGNORE, np.uint8)
+    road = read_mask(item.drivable, item.encoding)
+    if road.shape != shape:
+        raise ValueError(f"{item.drivable}: mask {road.shape} is not the image's size {shape}")
+    return road
+
+
+def drivable_target(road: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+    """Road ids (H, W) 0/1/255 at the frame's size -> uint8 (h, w) target at the model's output
+    size (w, h): the majority of each cell's labelled pixels (a surface, not a thin line), 255
+    where most of the cell has no label."""
+    labelled = (road != IGNORE).astype(np.float32)
+    on = cv2.resize((road == 1).astype(np.float32), size, interpolation=cv2.INTER_AREA)
+    known = cv2.resize(labelled, size, interpolation=cv2.INTER_AREA)
+    target = (on >= 0.5 * np.maximum(known, 1e-6)).astype(np.uint8)
+    target[known < 0.5] = IGNORE
+    return target
+
+
 class FrameDataset(Dataset):
-    def __init__(self, items: list[Item], spec: InputSpec, augment: A.Compose | None = None):
-        self.items, self.spec, self.augment = items, spec, augment
+    """(input, marking target, drivable target) per frame; with drivable=False only the first
+    two (a marking model)."""
+
+    def __init__(self, items: list[Item], spec: InputSpec, augment: A.Compose | None = None, drivable: bool = False):
+        self.items, self.spec, self.augment, self.drivable = items, spec, augment, drivable
 
     def __len__(self) -> int:
         return len(self.items)
 
     def __getitem__(self, i: int):
         img, mask = read_pair(self.items[i])
+        road = read_drivable(self.items[i], mask.shape) if self.drivable else None
         if self.augment is not None:
-            out = self.augment(image=img, mask=mask)
-            img, mask = out["image"], out["mask"]
-        x = preprocess_frames([img], self.spec)[0]
-        y = mask_target(mask == 1, (self.spec.width, self.spec.height), ignore=mask == IGNORE)
-        return torch.from_numpy(x), torch.from_numpy(y.astype(np.int64))
+            out = self.augment(image=img, mask=mask, drivable=road if road is not None else mask)
+            img, mask, road = out["image"], out["mask"], out["drivable"] if road is not None else None
+        size = (self.spec.width, self.spec.height)
+        x = torch.from_numpy(preprocess_frames([img], self.spec)[0])
+        y = torch.from_numpy(mask_target(mask == 1, size, ignore=mask == IGNORE).astype(np.int64))
+        if road is None:
+            return x, y
+        return x, y, torch.from_numpy(drivable_target(road, size).astype(np.int64))
 
 
 class LaneDataModule(L.LightningDataModule):
     def __init__(self, roots: list[str | Path], batch_size: int = 32, val_fraction: float = VAL_FRACTION,
                  spec: InputSpec = DEFAULT_SPEC, workers: int = 0, seed: int = 0):
         super().__init__()
+        self.drivable = False  # set by setup: some frame has a road-surface mask (a road model is trained)
         self.seed = seed
         self.roots = [Path(r) for r in roots]
         self.batch_size, self.val_fraction, self.spec, self.workers = batch_size, val_fraction, spec, workers
@@ -124,16 +165,17 @@ class LaneDataModule(L.LightningDataModule):
         items = list_frames(self.roots)
         self.train_items = [it for it in items if split_of(it.key, self.val_fraction) == "train"]
         self.val_items = [it for it in items if split_of(it.key, self.val_fraction) == "val"]
+        self.drivable = any(it.drivable is not None for it in items)
         if not self.train_items or not self.val_items:
             raise ValueError(f"need frames on both sides of the split; got {len(self.train_items)} train, "
                              f"{len(self.val_items)} val")
 
     def train_dataloader(self) -> DataLoader:
-        return DataLoader(FrameDataset(self.train_items, self.spec, train_augment(self.seed)),
+        return DataLoader(FrameDataset(self.train_items, self.spec, train_augment(self.seed), self.drivable),
                           worker_init_fn=seed_worker, batch_size=self.batch_size, shuffle=True, num_workers=self.workers,
                           persistent_workers=self.workers > 0,
                           drop_last=len(self.train_items) > 2 * self.batch_size)
 
     def val_dataloader(self) -> DataLoader:
-        return DataLoader(FrameDataset(self.val_items, self.spec), batch_size=64, num_workers=self.workers,
+        return DataLoader(FrameDataset(self.val_items, self.spec, drivable=self.drivable), batch_size=64, num_workers=self.workers,
                           persistent_workers=self.workers > 0)

@@ -1,7 +1,11 @@
 """LightningModule for lane segmentation: weighted cross-entropy + soft Dice (thin structures:
 paint is a few percent of the pixels, so plain CE would settle for 'all road'), marking IoU and
 F1, and a picture of sample predictions after every validation epoch. Target pixels of 255 have
-no label (signlane.label_masks.IGNORE): the losses and the metrics leave them out."""
+no label (signlane.label_masks.IGNORE): the losses and the metrics leave them out.
+
+With drivable=True the net is a road model (signlane.lanes.seg_model.ROAD_CLASSES): logits
+channels 0-1 are the marking head, 2-3 the road-surface head, trained with plain cross-entropy on
+the drivable targets (a surface: no class weighting or Dice needed) and scored by val/drivable_iou."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -36,10 +40,12 @@ def weighted_ce(logits: torch.Tensor, target: torch.Tensor, weight: torch.Tensor
 
 class LaneTask(L.LightningModule):
     def __init__(self, width: int = 16, lr: float = 4e-3, weight_decay: float = 1e-4, pos_weight: float = 4.0,
-                 dice_weight: float = 1.0, input_size: tuple[int, int] = (160, 120)):
+                 dice_weight: float = 1.0, input_size: tuple[int, int] = (160, 120), drivable: bool = False,
+                 drivable_weight: float = 0.5):
         super().__init__()
         self.save_hyperparameters()
-        self.net = LaneSegNet(2, width)
+        self.net = LaneSegNet(4 if drivable else 2, width)
+        self.val_road_iou = BinaryJaccardIndex(ignore_index=IGNORE)
         self.register_buffer("ce_weight", torch.tensor([1.0, pos_weight]), persistent=False)
         self.val_iou, self.val_f1 = BinaryJaccardIndex(ignore_index=IGNORE), BinaryF1Score(ignore_index=IGNORE)
         self.train_iou = BinaryJaccardIndex(ignore_index=IGNORE)
@@ -49,31 +55,44 @@ class LaneTask(L.LightningModule):
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         return self.net(x)
 
-    def _loss(self, logits: torch.Tensor, y: torch.Tensor) -> torch.Tensor:
-        return weighted_ce(logits, y, self.ce_weight) + self.hparams.dice_weight * dice_loss(logits, y)
+    def _loss(self, logits: torch.Tensor, y: torch.Tensor, road: torch.Tensor | None = None) -> torch.Tensor:
+        mark = logits[:, :2]
+        loss = weighted_ce(mark, y, self.ce_weight) + self.hparams.dice_weight * dice_loss(mark, y)
+        if road is not None:
+            loss = loss + self.hparams.drivable_weight * weighted_ce(logits[:, 2:4], road, self.ce_weight.new_ones(2))
+        return loss
+
+    @staticmethod
+    def _unpack(batch):
+        return (batch[0], batch[1], batch[2]) if len(batch) == 3 else (batch[0], batch[1], None)
 
     def training_step(self, batch, _):
-        x, y = batch
+        x, y, road = self._unpack(batch)
         logits = self(x)
-        loss = self._loss(logits, y)
-        self.train_iou(logits.argmax(1), y)
+        loss = self._loss(logits, y, road)
+        self.train_iou(logits[:, :2].argmax(1), y)
         self.log("train/loss", loss, prog_bar=True)
         self.log("train/iou", self.train_iou, on_epoch=True, on_step=False)
         return loss
 
     def validation_step(self, batch, _):
-        x, y = batch
+        x, y, road = self._unpack(batch)
         logits = self(x)
-        self.log("val/loss", self._loss(logits, y), prog_bar=True)
-        pred = logits.argmax(1)
+        self.log("val/loss", self._loss(logits, y, road), prog_bar=True)
+        pred = logits[:, :2].argmax(1)
         self.val_iou.update(pred, y)
         self.val_f1.update(pred, y)
+        if road is not None:
+            self.val_road_iou.update(logits[:, 2:4].argmax(1), road)
 
     def on_validation_epoch_end(self) -> None:
         self.log("val/iou", self.val_iou.compute(), prog_bar=True)
         self.log("val/f1", self.val_f1.compute())
         self.val_iou.reset()
         self.val_f1.reset()
+        if self.hparams.drivable:
+            self.log("val/drivable_iou", self.val_road_iou.compute(), prog_bar=True)
+            self.val_road_iou.reset()
         if self.samples_dir is not None and self.sample_batch is not None and not self.trainer.sanity_checking:
             self._write_samples()
 
@@ -82,9 +101,9 @@ class LaneTask(L.LightningModule):
         pixels without a label darkened."""
         from signlane.draw import contact_sheet, write_image
         from signlane.lanes.seg_model import DEFAULT_SPEC as spec
-        x, y = self.sample_batch
+        x, y = self.sample_batch[:2]
         with torch.no_grad():
-            pred = self(x.to(self.device)).argmax(1).cpu().numpy()
+            pred = self(x.to(self.device))[:, :2].argmax(1).cpu().numpy()
         tiles = []
         for xi, yi, pi in zip(x.numpy(), y.numpy(), pred):
             rgb = (xi.transpose(1, 2, 0) * np.array(spec.std) + np.array(spec.mean)) / spec.scale

@@ -9,13 +9,14 @@ from pathlib import Path
 
 import torch
 
-from signlane.eval_masks import MaskCounts
+from signlane.eval_masks import MaskCounts, RoadCounts
 from signlane.fileio import atomic_write_text
 from signlane.label_masks import IGNORE
-from signlane.lanes.seg_model import DEFAULT_SPEC, marking_probability, preprocess_frames, to_frame_mask
+from signlane.lanes.seg_model import (DEFAULT_SPEC, drivable_probability, marking_probability, preprocess_frames,
+                                     to_frame_mask)
 from signlane.splits import VAL_FRACTION
 from signlane_train.common import build_trainer, resume_path, save_run_config
-from signlane_train.lane_data import FrameDataset, LaneDataModule, read_pair
+from signlane_train.lane_data import FrameDataset, LaneDataModule, read_drivable, read_pair
 from signlane_train.lane_net import count_parameters
 from signlane_train.lane_task import LaneTask
 from signlane_train.run_info import RunInfo
@@ -41,7 +42,8 @@ def train_lanes(data: list[str | Path], out: str | Path, epochs: int = 15, batch
     L.seed_everything(seed, workers=True)
     dm = LaneDataModule(data, batch_size, val_fraction, DEFAULT_SPEC, workers, seed)
     dm.setup()
-    task = LaneTask(width=width, lr=lr, pos_weight=pos_weight, input_size=(DEFAULT_SPEC.width, DEFAULT_SPEC.height))
+    task = LaneTask(width=width, lr=lr, pos_weight=pos_weight, input_size=(DEFAULT_SPEC.width, DEFAULT_SPEC.height),
+                    drivable=dm.drivable)
     task.samples_dir = out / "samples"
     val = FrameDataset(dm.val_items[:8], DEFAULT_SPEC)
     task.sample_batch = (torch.stack([val[i][0] for i in range(len(val))]),
@@ -52,7 +54,8 @@ def train_lanes(data: list[str | Path], out: str | Path, epochs: int = 15, batch
                           "val_fraction": val_fraction, "seed": seed, "deterministic": deterministic,
                           "input": [DEFAULT_SPEC.width, DEFAULT_SPEC.height],
                           "parameters": count_parameters(task.net), "train_frames": len(dm.train_items),
-                          "val_frames": len(dm.val_items), "threads": threads, "trainer": trainer_args or {}})
+                          "val_frames": len(dm.val_items), "threads": threads, "drivable": dm.drivable,
+                          "trainer": trainer_args or {}})
     trainer, ckpt = build_trainer(out, epochs, "val/iou", "max", patience, trainer_args, [info], quiet=quiet,
                                   deterministic=deterministic)
     t0 = time.perf_counter()
@@ -69,14 +72,25 @@ def train_lanes(data: list[str | Path], out: str | Path, epochs: int = 15, batch
 def evaluate_checkpoint(ckpt: str, items, tol: int = 2) -> dict:
     """Marking precision/recall/F1 within tol px at each frame's own size, through the runtime's
     pre- and post-processing (the numbers the exported model will give); pixels without a label
-    (mask ids 255) count nowhere."""
+    (mask ids 255) count nowhere. A road model adds the drivable IoU over the frames with a road
+    mask (val_drivable_iou)."""
     task = LaneTask.load_from_checkpoint(ckpt, map_location="cpu").eval()
     counts = MaskCounts()
+    road = RoadCounts()
     with torch.no_grad():
         for i in range(0, len(items), 32):
-            pairs = [read_pair(it) for it in items[i:i + 32]]
+            chunk = items[i:i + 32]
+            pairs = [read_pair(it) for it in chunk]
             x = torch.from_numpy(preprocess_frames([p[0] for p in pairs], DEFAULT_SPEC))
-            prob = marking_probability(task(x).numpy())
+            logits = task(x).numpy()
+            prob = marking_probability(logits)
             for (img, mask), pr in zip(pairs, prob):
                 counts.add(to_frame_mask(pr, img.shape[1], img.shape[0]), mask == 1, tol, mask == IGNORE)
-    return {f"val_{k}_at_{tol}px" if k != "frames" else "val_frames": v for k, v in counts.summary().items()}
+            if logits.shape[1] == 4:
+                for it, (img, mask), pr in zip(chunk, pairs, drivable_probability(logits)):
+                    if it.drivable is not None:
+                        road.add(to_frame_mask(pr, img.shape[1], img.shape[0]), read_drivable(it, mask.shape))
+    out = {f"val_{k}_at_{tol}px" if k != "frames" else "val_frames": v for k, v in counts.summary().items()}
+    if road.frames:
+        out["val_drivable_iou"] = road.iou
+    return out

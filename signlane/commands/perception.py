@@ -13,9 +13,15 @@ from signlane.commands.common import UserError, add_config_args, load_config, pi
 def add_infer(sub) -> None:
     p = sub.add_parser("infer", help="run the pipeline on images, folders and videos",
                        description="Run lane detection, sign proposals and steering on images, folders of "
-                                   "images/videos, and video files. Writes annotated images/videos with --out and "
-                                   "one JSON object per frame with --json FILE ('-' for stdout). A bad input gets "
-                                   "one error line; the rest still runs; the exit code is 1 if any input failed.")
+                                   "images/videos, and video files. Writes annotated images/videos (and a contact "
+                                   "sheet <stem>_sheet.png per video) with --out and one JSON object per frame with "
+                                   "--json FILE ('-' for stdout). The camera need not be measured: each input's pitch "
+                                   "and height are estimated from its own frames (the vanishing point of the road's "
+                                   "lines; a video's first 48 frames) and the summary reports them; the field of view "
+                                   "stays camera.hfov_deg. Setting camera.pitch_deg, camera.height_m or "
+                                   "camera.roll_deg (or camera.estimate=off) uses the configured camera instead. A bad "
+                                   "input gets one error line; the rest still runs; the exit code is 1 if any input "
+                                   "failed.")
     p.add_argument("paths", nargs="+", help="image files, video files or folders")
     p.add_argument("--out", type=Path, help="folder for annotated images/videos (and masks)")
     p.add_argument("--json", dest="json_path", metavar="FILE", help="write per-frame JSON lines here ('-' = stdout)")
@@ -23,7 +29,9 @@ def add_infer(sub) -> None:
                    help="lane method: auto (default: road-edges on a kerbed carriageway such as VIA's, "
                         "sliding-window on painted lanes), road-edges, sliding-window, canny-scan, color-hough, "
                         "vector-spline, segnet (learned; --save-masks then writes its marking mask)")
-    p.add_argument("--save-masks", action="store_true", help="write <stem>_lane.png (0/255) beside each annotated image")
+    p.add_argument("--save-masks", action="store_true", help="write <stem>_lane.png (0/255) beside each annotated image, and <stem>_drivable.png "
+                        "(the road surface, 0/255) where the method has a road output (segnet with a road model, "
+                        "road-edges, auto on a kerbed road)")
     p.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bars")
     p.add_argument("--max-pixels", type=pixels_arg, default=4096 * 4096, metavar="WxH",
                    help="refuse images and video frames with more pixels than this, read from the file's header "

@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 
 from signlane import lanes
-from signlane.config import Config
+from signlane.config import CameraConfig, Config
 from signlane.drive.signs import SignWorker, stage_failure
 from signlane.junction import JunctionDetector, view_from_scan, with_road_end
 from signlane.lanes.auto import road_state
@@ -55,6 +55,13 @@ class PerceptionStack:
                               **cfg.lanes.overrides())
         self.junctions = JunctionDetector(self.small_camera) if self.with_junctions else None
         self._size = (width, height)
+
+    def use_camera(self, camera: CameraConfig) -> None:
+        """Another camera for the frames to come (one measured from a stream's own frames):
+        the camera-dependent parts are built anew on the next frame."""
+        if camera != self.config.camera:
+            self.config = replace(self.config, camera=camera)
+            self._size = None
 
     @property
     def confirmed(self) -> list[SignDetection]:

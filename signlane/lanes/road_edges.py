@@ -71,6 +71,11 @@ class RoadEdgesState:
         return replace(self, scan=None)
 
 
+def road_edges_bev(cam: Camera, p: RoadEdgesParams, state: RoadEdgesState) -> BirdsEye:
+    """The bird's-eye view the carriageway is scanned in (kept in the state while the camera is)."""
+    return _bev(cam, p, state)
+
+
 def _bev(cam: Camera, p: RoadEdgesParams, state: RoadEdgesState) -> BirdsEye:
     if state.bev is not None and state.bev.camera == cam:
         return state.bev
@@ -283,7 +288,12 @@ def carriageway_estimate(method: str, cam: Camera, left, right, width: float, st
     debug = mask if mask is not None else np.zeros(shape, np.uint8)
     est = estimate_from_fits(method, cam, left, right, width, None, debug)
     path = centre_path(state.scan) if est.found else None
-    return replace(est, basis="edges", path_m=path)
+    return replace(est, basis="edges", path_m=path, drivable_mask=mask)
+
+
+def fit_edge(g: np.ndarray, p: RoadEdgesParams):
+    """A carriageway edge fitted to its scanned points (N, 2) ground metres (None: too few)."""
+    return _fit(g, p)
 
 
 def _fit(g: np.ndarray, p: RoadEdgesParams):
@@ -291,6 +301,16 @@ def _fit(g: np.ndarray, p: RoadEdgesParams):
         return None
     g = g[g[:, 1] <= g[:, 1].min() + p.fit_near_m]  # the near part: where steering looks
     return fit_boundary(g, order=2, min_points=p.min_rows)
+
+
+def centre_paint(bright: np.ndarray, bev: BirdsEye, scan: RoadScan, p: RoadEdgesParams,
+                 memory: float | None) -> float | None:
+    """The running share of the carriageway's middle that shows paint (`bright`: bool bird's-eye
+    paint mask), updated with this frame where it saw both edges well enough."""
+    paint = _centre_paint(bright, bev, scan, p)
+    if paint is None:
+        return memory
+    return paint if memory is None else p.paint_memory * memory + (1 - p.paint_memory) * paint
 
 
 def _centre_paint(bright: np.ndarray, bev: BirdsEye, scan: RoadScan, p: RoadEdgesParams) -> float | None:

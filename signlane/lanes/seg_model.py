@@ -2,8 +2,11 @@
 pre- and post-processing that training, export parity, evaluation and the runtime all call.
 
 The model takes whole frames resized to its input size (any aspect: a 16:9 frame is squeezed
-like it was in training) and returns class logits (N, 2, h, w) for background / lane marking
-at its output size; `marking_probability` turns them into P(marking) at that size.
+like it was in training) and returns class logits at its output size: (N, 2, h, w) for
+background / lane marking (CLASSES), or, for a road model, (N, 4, h, w) for background / lane
+marking / off road / drivable (ROAD_CLASSES: two independent two-class heads, since paint lies on
+the road). The metadata's class list says which a file is; `marking_probability` and
+`drivable_probability` turn the logits into P(marking) and P(road surface) at that size.
 """
 from __future__ import annotations
 
@@ -18,6 +21,7 @@ from signlane.onnx_model import InputSpec, ModelError, OnnxModel, prepare_input
 
 TASK = "lane-segmentation"
 CLASSES = ("background", "lane_marking")
+ROAD_CLASSES = ("background", "lane_marking", "off_road", "drivable")
 DEFAULT_MODEL = Path(__file__).resolve().parent.parent / "models" / "lanes.onnx"
 DEFAULT_SPEC = InputSpec(160, 120, "RGB", "NCHW", 1.0 / 255.0, (0.45, 0.45, 0.45), (0.25, 0.25, 0.25))
 MASK_THRESHOLD = 0.5
@@ -28,10 +32,21 @@ def preprocess_frames(frames_bgr: list[np.ndarray], spec: InputSpec = DEFAULT_SP
     return prepare_input(frames_bgr, spec, "frame")
 
 
-def marking_probability(logits: np.ndarray) -> np.ndarray:
-    """(N, 2, h, w) logits -> float32 (N, h, w) P(lane marking) (the 2-class softmax)."""
-    d = np.clip(logits[:, 1] - logits[:, 0], -60.0, 60.0)
+def _pair_probability(logits: np.ndarray, k: int) -> np.ndarray:
+    d = np.clip(logits[:, k + 1] - logits[:, k], -60.0, 60.0)
     return (1.0 / (1.0 + np.exp(-d))).astype(np.float32)
+
+
+def marking_probability(logits: np.ndarray) -> np.ndarray:
+    """(N, 2 or 4, h, w) logits -> float32 (N, h, w) P(lane marking) (the first pair's softmax)."""
+    return _pair_probability(logits, 0)
+
+
+def drivable_probability(logits: np.ndarray) -> np.ndarray:
+    """(N, 4, h, w) logits of a road model -> float32 (N, h, w) P(road surface) (the second pair)."""
+    if logits.shape[1] != len(ROAD_CLASSES):
+        raise ValueError(f"logits have {logits.shape[1]} channels; a road model's have {len(ROAD_CLASSES)}")
+    return _pair_probability(logits, 2)
 
 
 def mask_target(mask: np.ndarray, size: tuple[int, int], min_cover: float = 0.25,
@@ -56,20 +71,32 @@ def to_frame_mask(prob: np.ndarray, width: int, height: int, threshold: float = 
 
 
 class LaneSegModel:
-    """The segmentation model with its contract read from the ONNX metadata."""
+    """The segmentation model with its contract read from the ONNX metadata: a marking model
+    (CLASSES) or a road model (ROAD_CLASSES, `has_drivable`)."""
 
     def __init__(self, path: str | Path = DEFAULT_MODEL, threads: int = 1):
         self.model = OnnxModel(path, TASK, threads, output_rank=4)
-        if tuple(self.model.classes) != CLASSES:
-            raise ModelError(f"{path}: classes {self.model.classes} are not {list(CLASSES)}")
+        if tuple(self.model.classes) not in (CLASSES, ROAD_CLASSES):
+            raise ModelError(f"{path}: classes {self.model.classes} are neither {list(CLASSES)} nor "
+                             f"{list(ROAD_CLASSES)}")
+        self.classes = tuple(self.model.classes)
+        self.has_drivable = self.classes == ROAD_CLASSES
         self.spec = self.model.input
+
+    def logits(self, frames_bgr: list[np.ndarray]) -> np.ndarray:
+        out = self.model.run(preprocess_frames(frames_bgr, self.spec))
+        if out.ndim != 4 or out.shape[1] != len(self.classes):
+            raise ModelError(f"{self.model.path}: output shape {out.shape} is not (N, {len(self.classes)}, h, w)")
+        return out
 
     def probabilities(self, frames_bgr: list[np.ndarray]) -> np.ndarray:
         """float32 (N, h, w) P(lane marking) at the model's output size."""
-        logits = self.model.run(preprocess_frames(frames_bgr, self.spec))
-        if logits.ndim != 4 or logits.shape[1] != len(CLASSES):
-            raise ModelError(f"{self.model.path}: output shape {logits.shape} is not (N, 2, h, w)")
-        return marking_probability(logits)
+        return marking_probability(self.logits(frames_bgr))
+
+    def maps(self, frames_bgr: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray | None]:
+        """(P(lane marking), P(road surface) or None for a marking model), each float32 (N, h, w)."""
+        logits = self.logits(frames_bgr)
+        return marking_probability(logits), drivable_probability(logits) if self.has_drivable else None
 
 
 @lru_cache(maxsize=4)
