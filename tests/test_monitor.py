@@ -30,7 +30,10 @@ class FakeDriver:
         right = np.array([[w * 0.7, h - 1.0], [w * 0.55, h * 0.5]])
         mask = np.zeros((h, w), np.uint8)
         mask[h // 2:, w // 3: 2 * w // 3] = 255
-        lane = LaneEstimate("fake", True, 0.1, 0.0, left=left, right=right, debug_mask=mask, basis="edges")
+        road = np.zeros((h // 2, w // 2), np.uint8)  # at the lane copy's size, as road-edges gives it
+        road[h // 4:, :] = 255
+        lane = LaneEstimate("fake", True, 0.1, 0.0, left=left, right=right, debug_mask=mask, basis="edges",
+                            drivable_mask=road)
         return Perception(Frame(tel.image_bgr, self.n * 0.05, self.n), lane, ()), Command(0.25, 0.3, "cruise")
 
     def close(self):
@@ -95,6 +98,8 @@ def test_page_and_endpoints_on_the_drive_port(server):
     assert ctype == "image/jpeg" and img.shape == (240, 320, 3)
     mask = cv2.imdecode(np.frombuffer(get(f"{base}/api/frame.jpg?topic=mask")[2], np.uint8), cv2.IMREAD_GRAYSCALE)
     assert mask[200, 160] > 200 and mask[50, 20] < 50  # the lane method's mask, at the frame's size
+    road = cv2.imdecode(np.frombuffer(get(f"{base}/api/frame.jpg?topic=drivable")[2], np.uint8), cv2.IMREAD_GRAYSCALE)
+    assert road.shape == (240, 320) and road[200, 20] > 200 and road[60, 160] < 50  # scaled to the frame
     assert status_of(f"{base}/api/frame.jpg?topic=nope") == 404
     assert status_of(f"{base}/secrets") == 404
 

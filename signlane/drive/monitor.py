@@ -29,11 +29,12 @@ from signlane.types import Command, Perception
 TOPICS = {
     "rgb": "camera",
     "mask": "lane method's mask (the drivable road on a kerbed road, lane paint on a painted one)",
+    "drivable": "drivable road surface (road-edges' scan, or a road model's drivable head)",
     "birdseye": "bird's-eye view of the road ahead",
     "colours": "sign colour masks (red, blue)",
     "canny": "edges (Canny)",
 }
-ALIGNED = {"rgb", "mask", "canny"}  # in the camera's pixels: the page draws lanes and boxes over them
+ALIGNED = {"rgb", "mask", "drivable", "canny"}  # in the camera's pixels: the page draws lanes and boxes over them
 JPEG_QUALITY = 70
 MAX_VIEWER_FPS = 15.0  # a person watching needs no more; each frame encoded is CPU the driver could use
 STREAM_WIDTH = 320  # streamed frames are at most this wide (a quarter of VIA's pixels to encode and decode);
@@ -172,9 +173,10 @@ class Monitor:
         h, w = image.shape[:2]
         if topic == "rgb":
             return image
-        if topic == "mask":
-            mask = snap.perception.lane.debug_mask
-            if mask is None:
+        if topic in ("mask", "drivable"):
+            lane = snap.perception.lane
+            mask = lane.debug_mask if topic == "mask" else lane.drivable_mask
+            if mask is None:  # (a lane method with no road output: nothing to show)
                 return np.zeros((h, w), np.uint8)
             mask = (mask > 0).astype(np.uint8) * 255
             return cv2.resize(mask, (w, h), interpolation=cv2.INTER_NEAREST) if mask.shape[:2] != (h, w) else mask
