@@ -249,6 +249,22 @@ def test_an_opening_whose_near_end_is_outside_the_view_is_planned_once_in_view()
     assert _approach(Behaviour(), lane, 16.0, cut=True) != "junction-right"  # not yet: too far to plan
 
 
+def test_a_turn_taken_as_the_least_dead_way_is_not_planned_again_every_frame():
+    # A T reached along its stem whose two arms were both judged dead (a lane shift one tile on
+    # looks like the long arm ending): the least dead way is taken, and judging it dead again
+    # on the next frame is no news; the plan was made again on every frame to the junction.
+    ys = np.arange(3.5, 12.0, 0.5)
+    lane = LaneEstimate("test", True, lane_width_m=4.0, path_m=np.column_stack([np.zeros_like(ys), ys]))
+    b = Behaviour()
+    for i in range(8):
+        n = 10.0 - 0.25 * i
+        view = JunctionView(Opening(n, n + 4.0, True, dead=True), Opening(n, n + 4.0, True, dead=True), False,
+                            straight_dead=True)
+        state = b.step(0.05 * i, OdoPose(0.0, 0.25 * i), 0.25 * i, 3.0, lane, view, two_lane=False)[2]
+    # planned once, and once more when the second frame made both arms dead: then it holds
+    assert [d["turn"] for d in b.decisions] == ["right", "right"] and state == "junction-right"
+
+
 def test_out_of_a_kerbed_turn_the_exit_roads_lane_takes_over_from_the_planned_tail():
     # The planned turn's straight tail ran on 12 m out of its arc: one tile on, the exit road
     # shifted sideways (a lane shift) and the car, still on its tail, touched the kerb. Past
