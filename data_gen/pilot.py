@@ -19,6 +19,7 @@ import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
+from signlane.sim.drive_record import recording_folders  # noqa: F401  (the readers' way to find drives)
 from signlane_data.common import prepare_output, run_indexed, write_manifest
 
 log = logging.getLogger(__name__)
@@ -98,13 +99,4 @@ def generate_pilot_drives(out: str | Path, n: int, first_seed: int = 1000, style
     manifest = write_manifest(out, "pilot", first_seed, counts, config, drives=drives)
     log.info("%s: %d teacher drives, %d frames", out, counts["drives"], counts["frames"])
     return manifest
-
-
-def recording_folders(root: str | Path) -> list[Path]:
-    """The recordings a folder holds: itself (a drive.jsonl beside its manifest) or, for `gen
-    pilot` output or any folder of recordings, every complete one below it, sorted."""
-    root = Path(root)
-    if (root / "drive.jsonl").is_file():
-        return [root]
-    return sorted(p.parent for p in root.rglob("drive.jsonl") if (p.parent / "manifest.json").is_file())
 

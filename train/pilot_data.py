@@ -30,7 +30,6 @@ from tqdm import tqdm
 from signlane.onnx_model import InputSpec
 from signlane.pilot import DESIRES, flip_desire, preprocess_frames
 from signlane.splits import VAL_FRACTION, split_of
-from signlane_data.pilot import recording_folders
 from signlane_train.common import seed_worker
 
 CACHE_SIZE = (160, 120)  # frames are kept at this size (the largest pilot input)
@@ -51,7 +50,7 @@ class PilotItem:
 def read_items(roots: list[str | Path]) -> list[PilotItem]:
     """Every frame of every recording under the roots; ValueError naming a root with none or a
     malformed line."""
-    from signlane.sim.drive_record import RecordError, read_recording
+    from signlane.sim.drive_record import RecordError, read_recording, recording_folders
     items: list[PilotItem] = []
     for root in map(Path, roots):
         folders = recording_folders(root)

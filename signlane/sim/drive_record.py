@@ -123,6 +123,15 @@ def read_recording(folder: str | Path) -> Recording:
     return Recording(folder, manifest, tuple(frames))
 
 
+def recording_folders(root: str | Path) -> list[Path]:
+    """The recordings a folder holds: itself (a drive.jsonl beside its manifest) or, for `gen
+    pilot` output or any folder of recordings, every complete one below it, sorted."""
+    root = Path(root)
+    if (root / FRAMES_FILE).is_file():
+        return [root]
+    return sorted(p.parent for p in root.rglob(FRAMES_FILE) if (p.parent / MANIFEST).is_file())
+
+
 class Recorder:
     """Writes a driving dataset; used from the DiskWriter thread only."""
 
