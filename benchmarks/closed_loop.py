@@ -122,8 +122,9 @@ def main() -> None:
                                                                              "(default: default)")
     ap.add_argument("--pilot", nargs="+", default=[], metavar="[LABEL=]FILE",
                     help="also drive each track with these pilots (rows labelled LABEL, default the file stem)")
-    ap.add_argument("--pilot-junctions", choices=["pilot", "planner"], default="pilot",
-                    help="who steers through planned junctions when a pilot drives (default pilot, told the exit)")
+    ap.add_argument("--pilot-junctions", choices=["pilot", "planner"], default="planner",
+                    help="who steers through planned junctions when a pilot drives: the planner's path "
+                         "(default, as the config's pilot.junctions) or the pilot told the exit")
     ap.add_argument("--no-teacher", action="store_true", help="with --pilot: skip the teacher's rows")
     ap.add_argument("--out", type=Path, help="per-run report.json and path.png, plus summary.json")
     a = ap.parse_args()

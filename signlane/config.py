@@ -66,7 +66,7 @@ class PilotConfig:
     """The end-to-end pilot (signlane/pilot.py): with a model it steers in place of the lane
     follower; the behaviour layer keeps signs, stops, speed and junction choices."""
     model: str = ""  # pilot ONNX file; "" = no pilot (the lane follower steers); "shipped" = signlane/models/pilot.onnx
-    junctions: str = "pilot"  # who steers through a planned junction: pilot (told the exit) | planner (its path)
+    junctions: str = "planner"  # who steers through a planned junction: planner (its path) | pilot (told the exit)
     threads: int = 1  # onnxruntime threads of the pilot
 
 

@@ -116,7 +116,7 @@ class PilotSteering:
     the steering sent. The planner's speed and state stay; at a planned junction the pilot is
     told the exit (its desire), or the planner's path steers there (junctions = "planner")."""
 
-    def __init__(self, model: PilotModel, junctions: str = "pilot"):
+    def __init__(self, model: PilotModel, junctions: str = "planner"):
         self.model, self.junctions = model, junctions
         self.last: PilotOutput | None = None
 

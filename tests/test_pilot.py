@@ -172,7 +172,7 @@ def test_a_short_closed_loop_drive_steers_with_the_pilot(pilot):
     from signlane.sim.simulator import SimConfig
     from signlane.world.maps import load_track
     root, _, _, onnx_path, _ = pilot
-    cfg = Config.load(None, [f"pilot.model={onnx_path}", "signs.enabled=false"])
+    cfg = Config.load(None, [f"pilot.model={onnx_path}", "signs.enabled=false", "pilot.junctions=pilot"])
     from signlane.sim.driver import Driver
     seen = []
 
@@ -190,6 +190,26 @@ def test_a_short_closed_loop_drive_steers_with_the_pilot(pilot):
     assert rep["time_s"] == pytest.approx(2.0, abs=0.05)
     assert run_session(load_track("random", "via", 3), SimConfig(max_seconds=1.0), None, cfg,
                        show_progress=False)["time_s"] == pytest.approx(1.0, abs=0.05)
+
+
+def test_at_a_planned_junction_the_planner_steers_by_default_or_the_pilot_told_the_exit():
+    from signlane.pilot import PilotSteering
+
+    class Model:
+        def __init__(self):
+            self.asked = []
+
+        def step(self, frame, desire):
+            from signlane.pilot import PilotOutput
+            self.asked.append(desire)
+            return PilotOutput({"left": -0.6, "straight": 0.05, "right": 0.6}[desire], 3.0)
+    img = np.zeros((8, 8, 3), np.uint8)
+    m = Model()
+    assert PilotSteering(m).steer(img, "junction-left", -0.3) == -0.3 and m.asked == []
+    assert PilotSteering(m).steer(img, "cruise", -0.3) == 0.05
+    told = PilotSteering(m, "pilot")
+    assert told.steer(img, "junction-left", -0.3) == -0.6 and told.steer(img, "junction-right", 0.2) == 0.6
+    assert m.asked == ["straight", "left", "right"] and told.last.speed == 3.0
 
 
 def test_eval_pilot_scores_models_side_by_side_and_draws(pilot, tmp_path, capsys):
