@@ -10,6 +10,12 @@ ran, the real-time minus lockstep difference per measure.
 
     python benchmarks/closed_loop.py [--style via painted] [--seeds 20] [--first-seed 0]
                                      [--modes lockstep realtime] [--jobs 1] [--out DIR] [--random-looks]
+                                     [--pilot [LABEL=]FILE ...] [--no-teacher] [--looks default random]
+
+With --pilot the same tracks are driven by each pilot as well (`--set pilot.model=FILE`: the
+pilot steers, the planner keeps speed, stops and exits), one row per driver: "teacher" (the
+classical lane follower), then each pilot under its LABEL (default the file's stem). Train
+pilots on other seeds than the ones scored here (`signlane gen pilot` starts at 1000).
 
 Tune on other seeds (e.g. --first-seed 100) than the acceptance's 0-19. Real-time rows depend on
 the machine's load: run them with --jobs 1 on a quiet machine. Lockstep rows are deterministic,
@@ -46,8 +52,8 @@ def _label(name: str) -> str:
     return Path(name).stem if name.endswith(".json") else name
 
 
-def _run(job: tuple[str, str, str | None, bool, str]) -> dict:
-    name, mode, out, random_looks, style = job
+def _run(job: tuple) -> dict:
+    name, mode, out, random_looks, style, driver, sets = job
     import cv2
     cv2.setNumThreads(1)
     from signlane.config import Config
@@ -57,10 +63,14 @@ def _run(job: tuple[str, str, str | None, bool, str]) -> dict:
     t0 = time.perf_counter()
     looks = SimConfig(random_looks=True, looks_seed=int(name[4:]) if name.startswith("seed") else 0) \
         if random_looks else SimConfig()
-    rep = run_session(_track(name, style), looks, Path(out) / f"{style}-{_label(name)}-{mode}" if out else None,
-                      Config(), lockstep=lock, with_driver=not lock, show_progress=False)
+    where = f"{style}-{_label(name)}-{mode}-{driver}{'-random' if random_looks else ''}"
+    rep = run_session(_track(name, style), looks, Path(out) / where if out else None,
+                      Config.load(None, list(sets)), lockstep=lock, with_driver=not lock, show_progress=False)
     rep["wall_s"] = round(time.perf_counter() - t0, 1)
-    rep["track"], rep["run"], rep["style"] = _label(name), mode, style
+    rep["track"], rep["run"], rep["style"], rep["driver"] = _label(name), mode, style, driver
+    rep["looks"] = "random" if random_looks else "default"
+    if driver != "teacher":
+        rep["pilot"] = list(sets)
     return rep
 
 
@@ -68,12 +78,12 @@ def _ratio(done: int, need: int) -> str:
     return f"{done}/{need}"
 
 
-HEADERS = ["track", "mode", "laps", "off-road", "cte mean / max", "stops", "turns", "sim s", "fps",
+HEADERS = ["track", "driver", "looks", "mode", "laps", "off-road", "cte mean / max", "stops", "turns", "sim s", "fps",
            "latency ms median / p99"]
 
 
 def _row(r: dict) -> str:
-    return markdown_row([r["track"], r["run"], r["laps"], r["offroad_events"], f"{r['cte_mean']:.3f} / {r['cte_max']:.3f}",
+    return markdown_row([r["track"], r.get("driver", "teacher"), r.get("looks", "default"), r["run"], r["laps"], r["offroad_events"], f"{r['cte_mean']:.3f} / {r['cte_max']:.3f}",
                          _ratio(r["stops"]["complied"], r["stops"]["required"]),
                          _ratio(r["turns"]["complied"], r["turns"]["required"]), f"{r['time_s']:.0f}", f"{r['fps']:.1f}",
                          f"{r['latency_ms']['median']:.1f} / {r['latency_ms']['p99']:.1f}"])
@@ -88,7 +98,8 @@ def totals(rows: list[dict]) -> dict:
     out = {"tracks": len(rows), "laps": sum(r["laps"] for r in rows),
            "offroad": sum(r["offroad_events"] for r in rows), "cte_mean": round(cte, 4),
            "cte_max": max(r["cte_max"] for r in rows), "stops": stops, "turns": turns,
-           "time_s": round(time_s, 1), "incomplete": [r["track"] for r in rows if r["laps"] < 1]}
+           "time_s": round(time_s, 1), "incomplete": [r["track"] for r in rows if r["laps"] < 1],
+           "autonomy": round(sum(r["autonomy"] * r["time_s"] for r in rows) / max(time_s, 1e-9), 2)}
     out["pass"] = (out["offroad"] == TARGET["offroad"] and not out["incomplete"]
                    and stops[0] >= TARGET["stops"] * stops[1] and turns[0] >= TARGET["turns"] * turns[1]
                    and cte <= TARGET["cte_mean"])
@@ -105,15 +116,30 @@ def main() -> None:
     ap.add_argument("--tracks", nargs="+", help="only these (bundled names, map files or seedN)")
     ap.add_argument("--modes", nargs="+", choices=["lockstep", "realtime"], default=["lockstep"])
     ap.add_argument("--jobs", type=int, default=1, help="tracks driven at once (real time: keep 1)")
-    ap.add_argument("--random-looks", action="store_true", help="randomise road and scenery colours (seeded)")
+    ap.add_argument("--random-looks", action="store_true", help="randomise road and scenery colours (seeded); "
+                                                                  "the same as --looks random")
+    ap.add_argument("--looks", nargs="+", choices=["default", "random"], help="scenery looks, a row each "
+                                                                             "(default: default)")
+    ap.add_argument("--pilot", nargs="+", default=[], metavar="[LABEL=]FILE",
+                    help="also drive each track with these pilots (rows labelled LABEL, default the file stem)")
+    ap.add_argument("--pilot-junctions", choices=["pilot", "planner"], default="planner",
+                    help="who steers through planned junctions when a pilot drives: the planner's path "
+                         "(default, as the config's pilot.junctions) or the pilot told the exit")
+    ap.add_argument("--no-teacher", action="store_true", help="with --pilot: skip the teacher's rows")
     ap.add_argument("--out", type=Path, help="per-run report.json and path.png, plus summary.json")
     a = ap.parse_args()
+    looks = a.looks or (["random"] if a.random_looks else ["default"])
+    drivers = [] if a.no_teacher and a.pilot else [("teacher", ())]
+    for spec in a.pilot:
+        label, _, path = spec.rpartition("=")
+        drivers.append((label or Path(path).stem, (f"pilot.model={path}", f"pilot.junctions={a.pilot_junctions}")))
     summary = {}
     all_rows = []
     for style in a.style:
         maps = [] if a.no_bundled else BUNDLED + (via_maps() if style == "via" else [])
         names = a.tracks or maps + [f"seed{s}" for s in range(a.first_seed, a.first_seed + a.seeds)]
-        jobs = [(n, m, str(a.out) if a.out else None, a.random_looks, style) for m in a.modes for n in names]
+        jobs = [(n, m, str(a.out) if a.out else None, lk == "random", style, d, sets)
+                for lk in looks for d, sets in drivers for m in a.modes for n in names]
         print(f"\n### style {style}\n")
         print(table(HEADERS, [], markdown=True))
         rows = []
@@ -122,12 +148,18 @@ def main() -> None:
                 rows.append(r)
                 print(_row(r), flush=True)
         all_rows += rows
-        for m in a.modes:
-            t = summary[f"{style}/{m}"] = totals([r for r in rows if r["run"] == m])
-            print(f"\n{style} {m}: {t['tracks']} tracks, {t['laps']} laps, off-road {t['offroad']}, "
-                  f"cte mean {t['cte_mean']:.3f} (max {t['cte_max']:.3f}), stops {_ratio(*t['stops'])}, "
-                  f"turns {_ratio(*t['turns'])}, {t['time_s']:.0f} s driven -> {'PASS' if t['pass'] else 'FAIL'}"
-                  + (f"; no lap on {t['incomplete']}" if t["incomplete"] else ""))
+        print()
+        for lk in looks:
+            for d, _ in drivers:
+                for m in a.modes:
+                    sel = [r for r in rows if r["run"] == m and r["driver"] == d and r["looks"] == lk]
+                    t = summary[f"{style}/{lk}/{d}/{m}"] = totals(sel)
+                    print(f"{style} {lk} looks, {d}, {m}: {t['tracks']} tracks, {t['laps']} laps, off-road "
+                          f"{t['offroad']}, autonomy {t['autonomy']:.1f}%, cte mean {t['cte_mean']:.3f} "
+                          f"(max {t['cte_max']:.3f}), stops {_ratio(*t['stops'])}, turns {_ratio(*t['turns'])}, "
+                          f"{t['time_s']:.0f} s driven -> {'PASS' if t['pass'] else 'FAIL'}"
+                          + (f"; no lap on {t['incomplete']}" if t["incomplete"] else ""))
+        rows = [r for r in rows if r["driver"] == drivers[0][0] and r["looks"] == looks[0]]
         if {"lockstep", "realtime"} <= set(a.modes):
             by = {(r["track"], r["run"]): r for r in rows}
             labels = [_label(n) for n in names]

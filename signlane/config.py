@@ -71,6 +71,15 @@ class ControlConfig:
 
 
 @dataclass(frozen=True)
+class PilotConfig:
+    """The end-to-end pilot (signlane/pilot.py): with a model it steers in place of the lane
+    follower; the behaviour layer keeps signs, stops, speed and junction choices."""
+    model: str = ""  # pilot ONNX file; "" = no pilot (the lane follower steers); "shipped" = signlane/models/pilot.onnx
+    junctions: str = "planner"  # who steers through a planned junction: planner (its path) | pilot (told the exit)
+    threads: int = 1  # onnxruntime threads of the pilot
+
+
+@dataclass(frozen=True)
 class DriveConfig:
     """Closed-loop driving (`signlane drive`, `signlane sim --with-driver`): the speed planner
     and what the driver assumes of the car."""
@@ -100,6 +109,7 @@ class Config:
     signs: SignsConfig = field(default_factory=SignsConfig)
     control: ControlConfig = field(default_factory=ControlConfig)
     drive: DriveConfig = field(default_factory=DriveConfig)
+    pilot: PilotConfig = field(default_factory=PilotConfig)
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -290,11 +300,13 @@ RANGES: dict[str, Range] = {
     "drive.sign_min_aspect": Range(0.0, 1.0, ""),
     "drive.sign_max_lateral_m": Range(0.5, 100.0, "m"),
     "drive.lanes_width": Range(32, 8192, "px", off=0),
+    "pilot.threads": Range(1, 64, "threads"),
 }
 CHOICES: dict[str, tuple[str, ...]] = {
     "camera.estimate": ("auto", "off"),
     "lanes.variant": ("robust", "published"),
     "signs.variant": ("robust", "published"),
+    "pilot.junctions": ("pilot", "planner"),
 }
 ORDERED: list[tuple[str, str]] = [  # (a, b): a <= b
     ("signs.confirm_n", "signs.confirm_m"),

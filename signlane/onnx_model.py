@@ -17,6 +17,8 @@ import numpy as np
 
 CONTRACT_VERSION = "1"
 PREFIX = "signlane."
+COLORS = ("RGB", "BGR", "HSV")  # HSV: S3's PilotNet input (its scale/std bring H 0..179 to [0, 1])
+_CONVERT = {"RGB": cv2.COLOR_BGR2RGB, "HSV": cv2.COLOR_BGR2HSV}
 
 
 class ModelError(Exception):
@@ -27,7 +29,7 @@ class ModelError(Exception):
 class InputSpec:
     width: int
     height: int
-    color: str  # "RGB" or "BGR"
+    color: str  # "RGB", "BGR" or "HSV" (OpenCV's: H 0..179, S and V 0..255)
     layout: str  # "NCHW"
     scale: float  # multiply uint8 pixels by this first
     mean: tuple[float, float, float]
@@ -45,7 +47,7 @@ class InputSpec:
                        tuple(float(v) for v in d["mean"]), tuple(float(v) for v in d["std"]))
         except (ValueError, KeyError, TypeError, IndexError) as e:
             raise ModelError(f"{where}: metadata 'input' is malformed ({e})") from None
-        if spec.color not in ("RGB", "BGR") or spec.layout != "NCHW" or min(spec.width, spec.height) < 4 \
+        if spec.color not in COLORS or spec.layout != "NCHW" or min(spec.width, spec.height) < 4 \
                 or len(spec.mean) != 3 or len(spec.std) != 3 or min(spec.std) <= 0:
             raise ModelError(f"{where}: metadata 'input' is not understood: {text}")
         return spec
@@ -64,8 +66,8 @@ def prepare_input(images_bgr: list[np.ndarray], spec: InputSpec, what: str = "im
             raise ValueError(f"{what} {i}: expected uint8 (H, W, 3) BGR, got {f.dtype} {f.shape}")
         shrink = f.shape[0] > spec.height or f.shape[1] > spec.width
         r = cv2.resize(f, (spec.width, spec.height), interpolation=cv2.INTER_AREA if shrink else cv2.INTER_LINEAR)
-        if spec.color == "RGB":
-            r = cv2.cvtColor(r, cv2.COLOR_BGR2RGB)
+        if spec.color != "BGR":
+            r = cv2.cvtColor(r, _CONVERT[spec.color])
         x = out[i]
         np.multiply(r.transpose(2, 0, 1), gain, out=x, casting="unsafe")
         x -= bias

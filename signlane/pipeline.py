@@ -23,6 +23,8 @@ class Pipeline:
         self._controller = None
         self._camera_size: tuple[int, int] | None = None
         make_controller(self.config.control.controller)  # fail early on a bad name
+        from signlane.pilot import from_config
+        self.pilot = from_config(self.config.pilot)  # steers in place of the controller where set
 
     @property
     def confirmed(self) -> list[SignDetection]:
@@ -46,7 +48,11 @@ class Pipeline:
         t2 = time.perf_counter()
         steering = self._controller.step(lane, speed)
         throttle, state = self._throttle.throttle(lane)
-        timing["control"] = (time.perf_counter() - t2) * 1e3
+        t3 = time.perf_counter()
+        timing["control"] = (t3 - t2) * 1e3
+        if self.pilot is not None:  # no planner here: straight on along the lane
+            steering = self.pilot.step(frame.image_bgr, "straight").steering
+            timing["pilot"] = (time.perf_counter() - t3) * 1e3
         return Perception(frame, lane, signs, timing), Command(steering, throttle, state)
 
     def use_camera(self, camera: CameraConfig) -> None:

@@ -73,3 +73,21 @@ def confusion_matrix(conf: Sequence[Sequence[int]], classes: Sequence[str], titl
     fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04, label="share of the true class")
     fig.tight_layout()
     return _to_bgr(fig)
+
+
+def steering_chart(teacher: Sequence[float], predicted: dict[str, Sequence[float]], xlabel: str = "frame",
+                   title: str = "steering: predicted vs teacher") -> np.ndarray:
+    """Steering over time: the teacher's as a thick grey line, each model's over it."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(10.0, 3.6), dpi=100)
+    ax.plot(np.asarray(teacher, float), color="0.55", linewidth=2.4, label="teacher")
+    for name, values in predicted.items():
+        ax.plot(np.asarray(values, float), linewidth=1.0, label=name)
+    ax.set_ylim(-1.05, 1.05)
+    ax.axhline(0.0, color="0.8", linewidth=0.6)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel("steering (+ right)")
+    ax.set_title(title)
+    ax.legend(loc="upper right", fontsize=8)
+    fig.tight_layout()
+    return _to_bgr(fig)

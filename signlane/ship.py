@@ -15,7 +15,7 @@ from pathlib import Path
 from signlane.fileio import atomic_write_bytes, atomic_write_json
 
 MODELS_DIR = Path(__file__).resolve().parent / "models"
-KINDS = ("signs", "lanes")
+KINDS = ("signs", "lanes", "pilot")
 
 
 class ShipError(ValueError):
@@ -33,6 +33,9 @@ def _load(path: Path, kind: str):
         if kind == "signs":
             from signlane.signs.classifier import SignClassifier
             return SignClassifier(path).model
+        if kind == "pilot":
+            from signlane.pilot import PilotModel
+            return PilotModel(path).model
         from signlane.lanes.seg_model import LaneSegModel
         return LaneSegModel(path).model
     except ModelError as e:

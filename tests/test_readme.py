@@ -51,13 +51,17 @@ def shrink(cmd: str, models: Path) -> str:
         p = part
         if re.match(r"\s*signlane (demo|sim)\b", p):
             p = re.sub(r"(signlane (demo|sim)\b)", r"\1 --max-seconds 4 --size 320x240", p, count=1)
-        if re.match(r"\s*signlane train (signs|lanes)\b", p) and "--epochs" not in p:
-            p = re.sub(r"(signlane train (signs|lanes))", r"\1 --epochs 1", p, count=1)
+        if re.match(r"\s*signlane gen pilot\b", p):  # one seed per style, 8 s a drive: 3 split blocks each
+            p = re.sub(r"--n \d+", "--n 1", re.sub(r"--seconds [\d.]+", "", p)) + " --seconds 8"
+        if re.match(r"\s*signlane train pilot\b", p) and "--val-fraction" not in p:
+            p += " --val-fraction 0.5"
+        if re.match(r"\s*signlane train (signs|lanes|pilot)\b", p) and "--epochs" not in p:
+            p = re.sub(r"(signlane train (signs|lanes|pilot))", r"\1 --epochs 1", p, count=1)
         if re.match(r"\s*signlane eval (lanes|proposals)\b", p):
             p = re.sub(r"(signlane eval (lanes|proposals))", r"\1 --n 4", p, count=1)
         if re.match(r"\s*signlane ship\b", p):
             p += f" --into {models}"
-        if re.match(r"\s*\S+ benchmarks/(render|lanes|drive|pipeline)\.py", p):
+        if re.match(r"\s*\S+ benchmarks/(render|lanes|drive|pipeline|pilot)\.py", p):
             p += " --frames 3 --repeats 1" if "drive.py" not in p else " --frames 5 --repeats 1"
         if re.match(r"\s*\S+ benchmarks/signs\.py", p):
             p += " --repeats 1"

@@ -18,7 +18,7 @@ def add_train(sub, lightning_flags: bool = True) -> None:
                                    "Writes checkpoints/ (best.ckpt, last.ckpt), logs/ (CSV), tensorboard/, "
                                    "config.json, train.toml (the resolved options: rerun with --config) and report "
                                    "pictures to --out. Resume a killed run with --resume.")
-    kinds = p.add_subparsers(dest="kind", required=True, metavar="{signs,lanes}")
+    kinds = p.add_subparsers(dest="kind", required=True, metavar="{signs,lanes,pilot}")
     signs = kinds.add_parser("signs", help="the sign classifier on ImageFolder crops",
                              description="Train the sign classifier (a small CNN) on one or more ImageFolder crop "
                                          "sets; writes confusion.png and errors_<class>.png at the end. " + _CONFIG_HELP)
@@ -39,6 +39,7 @@ def add_train(sub, lightning_flags: bool = True) -> None:
     _add_cpu_args(signs, workers=1)
     _add_run_args(signs, lightning_flags)
     _add_train_lanes(kinds, lightning_flags)
+    _add_train_pilot(kinds, lightning_flags)
     p.set_defaults(func=_run_train)
 
 
@@ -68,6 +69,41 @@ def _add_train_lanes(kinds, lightning_flags: bool) -> None:
     lanes.add_argument("--seed", type=int, default=0, help="training seed (default 0)")
     _add_cpu_args(lanes, workers=1)
     _add_run_args(lanes, lightning_flags)
+
+
+def _add_train_pilot(kinds, lightning_flags: bool) -> None:
+    pilot = kinds.add_parser("pilot", help="the end-to-end pilot on the teacher's drive recordings",
+                             description="Train the end-to-end pilot (for `--set pilot.model=FILE`) on drive "
+                                         "recordings: `signlane gen pilot` output, `signlane sim --record` or "
+                                         "`signlane drive --record` folders, or folders holding several. The label "
+                                         "is the teacher's own steering; --arch pilotnet is S3's PilotNet as "
+                                         "published (HSV 120x160, conv 24/36/48 5x5 stride 2, conv 64/64 3x3, ELU, "
+                                         "dropout 0.5, dense 100-50-10-1, MSE, Adam 1e-4, batch 100); --arch small "
+                                         "is ours (HSV 96x72, one steering branch per desire left/straight/right, "
+                                         "plus the teacher's target speed). Augmentation keeps the label true: a "
+                                         "flipped frame negates steering and swaps left/right desire, a shift adds "
+                                         "the steering back to the lane, roll and light leave it. Writes "
+                                         "samples/epoch_<k>.png (val steering over time) every epoch. " + _CONFIG_HELP)
+    pilot.add_argument("data", nargs="*", type=Path, help="recording folders")
+    pilot.add_argument("--out", type=Path, help="run folder (required, here or in the config file)")
+    pilot.add_argument("--arch", choices=["pilotnet", "small"], default="small",
+                       help="pilotnet (S3's, the baseline) or small (ours; default)")
+    pilot.add_argument("--epochs", type=positive, default=15, help="maximum epochs (default 15)")
+    pilot.add_argument("--batch-size", type=positive, default=None,
+                       help="batch size (default: 100 for pilotnet as S3, 128 for small)")
+    pilot.add_argument("--lr", type=float, default=None, help="Adam learning rate (default: 1e-4 pilotnet, 2e-3 small)")
+    pilot.add_argument("--width", type=positive, default=16, help="channels of small's first conv (default 16)")
+    pilot.add_argument("--speed-weight", type=float, default=0.1, help="small: weight of the speed loss (default 0.1)")
+    pilot.add_argument("--flip", type=float, default=0.5, help="probability of a mirrored frame (default 0.5)")
+    pilot.add_argument("--shift", type=float, default=0.08,
+                       help="largest horizontal shift, a fraction of the width (relabelled; default 0.08; 0 = none)")
+    pilot.add_argument("--no-augment", dest="augment", action="store_false", help="train on the frames as recorded")
+    pilot.add_argument("--val-fraction", type=float, default=0.1,
+                       help="share of 50-frame blocks of each drive held out for validation (default 0.1)")
+    pilot.add_argument("--patience", type=positive, default=5, help="early-stopping patience in epochs (default 5)")
+    pilot.add_argument("--seed", type=int, default=0, help="training seed (default 0)")
+    _add_cpu_args(pilot, workers=0)
+    _add_run_args(pilot, lightning_flags)
 
 
 def _add_run_args(p, lightning_flags: bool) -> None:
@@ -136,12 +172,23 @@ def _run_train(args) -> int:
         return 0
     try:
         from signlane_train.lanes import train_lanes
+        from signlane_train.pilot import train_pilot
         from signlane_train.signs import train_signs
     except ImportError as e:
         raise UserError(f"training needs the train extra (pip install 'signlane[train]'): {e}") from None
     shared = {k: opts[k] for k in ("epochs", "batch_size", "lr", "width", "patience", "seed", "resume", "workers",
                                    "threads", "deterministic")}
-    if args.kind == "lanes":
+    if args.kind == "pilot":
+        from signlane_train.pilot_data import AugmentParams
+        for k in ("flip", "shift"):
+            if not 0 <= opts[k] <= 1:
+                raise UserError(f"--{k} {opts[k]}: must be within 0..1")
+        aug = AugmentParams(flip=opts["flip"], shift=opts["shift"]) if opts["augment"] else None
+        if not 0 < opts["val_fraction"] < 1:
+            raise UserError(f"--val-fraction {opts['val_fraction']}: must be between 0 and 1")
+        train, own = train_pilot, dict(arch=opts["arch"], speed_weight=opts["speed_weight"], augment=aug,
+                                       val_fraction=opts["val_fraction"])
+    elif args.kind == "lanes":
         train, own = train_lanes, dict(pos_weight=opts["pos_weight"])
     else:
         train, own = train_signs, dict(size=opts["size"], class_weights=opts["class_weights"], augment=opts["augment"])
@@ -162,7 +209,7 @@ def add_export(sub) -> None:
                        description="Export a trained checkpoint to ONNX with the model contract in its metadata, "
                                    "check it with onnx.checker and compare onnxruntime with torch on fixed inputs "
                                    "(max abs diff <= 1e-4) or fail.")
-    kinds = p.add_subparsers(dest="kind", required=True, metavar="{signs,lanes}")
+    kinds = p.add_subparsers(dest="kind", required=True, metavar="{signs,lanes,pilot}")
     signs = kinds.add_parser("signs", help="the sign classifier")
     signs.add_argument("ckpt", type=Path, help="checkpoint (e.g. RUN/checkpoints/best.ckpt)")
     signs.add_argument("--out", type=Path, required=True, help="ONNX file to write")
@@ -170,6 +217,9 @@ def add_export(sub) -> None:
     lanes = kinds.add_parser("lanes", help="the lane-marking segmentation net (for --lanes segnet)")
     lanes.add_argument("ckpt", type=Path, help="checkpoint (e.g. RUN/checkpoints/best.ckpt)")
     lanes.add_argument("--out", type=Path, required=True, help="ONNX file to write")
+    pilot = kinds.add_parser("pilot", help="the end-to-end pilot (for --set pilot.model=FILE)")
+    pilot.add_argument("ckpt", type=Path, help="checkpoint (e.g. RUN/checkpoints/best.ckpt)")
+    pilot.add_argument("--out", type=Path, required=True, help="ONNX file to write")
     p.set_defaults(func=_run_export)
 
 
@@ -178,7 +228,7 @@ def _run_export(args) -> int:
     if in_models_dir(args.out):  # an editable install would make every later command use it, unasked
         raise UserError(f"--out {args.out}: export does not write into the shipped models' folder; export to "
                         f"runs/ or out/, then `signlane ship FILE.onnx --as {args.kind}`")
-    if args.kind == "lanes":
+    if args.kind in ("lanes", "pilot"):
         return _run_export_lanes(args)
     try:
         from signlane_export.onnx_export import ExportError
@@ -194,14 +244,17 @@ def _run_export(args) -> int:
 
 
 def _run_export_lanes(args) -> int:
+    """export lanes / export pilot: a checkpoint in, one ONNX file out."""
+    from signlane.onnx_model import ModelError
     try:
         from signlane_export.lanes import export_lanes
         from signlane_export.onnx_export import ExportError
+        from signlane_export.pilot import export_pilot
     except ImportError as e:
         raise UserError(f"export needs the train extra (pip install 'signlane[train]'): {e}") from None
     try:
-        report = export_lanes(args.ckpt, args.out)
-    except (ValueError, OSError, ExportError) as e:
+        report = (export_pilot if args.kind == "pilot" else export_lanes)(args.ckpt, args.out)
+    except (ValueError, OSError, ExportError, ModelError) as e:
         raise UserError(str(e)) from None
     print(json.dumps(report, indent=1))
     return 0
@@ -215,7 +268,8 @@ def add_ship(sub) -> None:
                                    "card beside it (<kind>.json) is rewritten for the shipped file, keeping the "
                                    "card it replaces under 'replaced'.")
     p.add_argument("model", type=Path, help="exported ONNX file (e.g. runs/signs/signs.onnx)")
-    p.add_argument("--as", dest="kind", required=True, choices=["signs", "lanes"], help="which default it replaces")
+    p.add_argument("--as", dest="kind", required=True, choices=["signs", "lanes", "pilot"],
+                   help="which default it replaces")
     p.add_argument("--into", type=Path, help="models folder (default: the package's signlane/models)")
     p.set_defaults(func=_run_ship)
 

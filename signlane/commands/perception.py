@@ -57,7 +57,7 @@ def _run_infer(args) -> int:
 def add_eval(sub) -> None:
     p = sub.add_parser("eval", help="score lane methods or sign proposals on a seeded synthetic test set",
                        description="Render a seeded synthetic test set and print a score table.")
-    kinds = p.add_subparsers(dest="kind", required=True, metavar="{lanes,proposals,signs,masks}")
+    kinds = p.add_subparsers(dest="kind", required=True, metavar="{lanes,proposals,signs,masks,pilot}")
     common = argparse.ArgumentParser(add_help=False)
     common.add_argument("--n", type=positive, default=500, help="frames (default 500)")
     common.add_argument("--seed", type=int, default=1000, help="test-set seed (default 1000)")
@@ -97,10 +97,35 @@ def add_eval(sub) -> None:
     signs.add_argument("--min-score", type=float, default=0.5, help="score a sign needs to count (default 0.5)")
     signs.add_argument("--out", type=Path, help="write confusion.png and errors_<class>.png/.txt (each wrong crop "
                                                  "captioned with its file, what it was taken for and the score) here")
+    pilot = kinds.add_parser("pilot", help="pilot steering against the teacher on recorded drives",
+                             description="Steering error (MAE, RMSE) of one or more pilots against the teacher's "
+                                         "own steering on drive recordings (`signlane gen pilot` or `sim --record` "
+                                         "folders; record fresh ones on seeds not trained on): overall, by the "
+                                         "teacher's lane curvature (straight, bend, turn) and by desire; several "
+                                         "--model side by side. With --out: steering.png (predicted vs teacher "
+                                         "over time) and disagree_<model>.png (the frames they differ most on).")
+    pilot.add_argument("data", nargs="+", type=Path, help="recording folders")
+    pilot.add_argument("--model", type=Path, action="append", required=True,
+                       help="pilot ONNX file (repeat to compare)")
+    pilot.add_argument("--out", type=Path, help="folder for steering.png and disagree_<model>.png")
+    pilot.add_argument("--json", dest="json_path", type=Path, help="also write the scores as JSON")
     p.set_defaults(func=_run_eval)
 
 
 def _run_eval(args) -> int:
+    if args.kind == "pilot":
+        from signlane.eval_pilot import eval_pilot, format_table
+        from signlane.onnx_model import ModelError
+        try:
+            result = eval_pilot(args.data, args.model, args.out)
+        except (ModelError, ValueError, OSError) as e:
+            raise UserError(str(e)) from None
+        print(f"{result['frames']} frames of {result['drives']} drive(s)")
+        print(format_table(result))
+        if args.json_path:
+            from signlane.fileio import atomic_write_json
+            atomic_write_json(args.json_path, result)
+        return 0
     if args.kind in ("signs", "masks"):
         from signlane.onnx_model import ModelError
         try:

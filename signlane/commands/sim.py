@@ -41,7 +41,7 @@ def add_sim(sub) -> None:
                    help="how roads look: via = VIA's own (one 4 m carriageway between white kerbs, no paint; "
                         "default), painted = two painted lanes on wider cells")
     p.add_argument("--seed", type=int, default=0, help="procedural track seed (default 0)")
-    p.add_argument("--url", default="ws://127.0.0.1:4567", help="drive server to connect to (default %(default)s)")
+    p.add_argument("--url", help="drive server to connect to (default ws://127.0.0.1:4567)")
     p.add_argument("--with-driver", action="store_true",
                    help="start signlane's drive server in this process on a free port and drive with it")
     p.add_argument("--lockstep", action="store_true",
@@ -68,6 +68,17 @@ def add_sim(sub) -> None:
     p.add_argument("--video", action="store_true",
                    help="with --out: drive.mp4 (H.264), the frames with the command and, with --with-driver, what "
                         "the driver saw (lanes, sign boxes, state), as `demo` draws it")
+    p.add_argument("--record", type=Path, metavar="DIR",
+                   help="record the drive for learning from it (`signlane train pilot`): images/<id>.jpg, "
+                        "drive.jsonl (telemetry, the command, the teacher's command, lane estimate, state, "
+                        "desire) and manifest.json (track, style, looks), the layout `signlane drive --record` "
+                        "writes; by the in-process driver, or with --with-driver by its server")
+    p.add_argument("--perturb", type=float, default=0.0, metavar="SCALE",
+                   help="with --record, in-process: add smooth steering pulses of up to SCALE (e.g. 0.3) to "
+                        "the applied steering, so the recording shows the teacher steering back to the lane "
+                        "centre; the label stays the teacher's own command (default 0: none)")
+    p.add_argument("--record-every", type=positive, default=1, metavar="N",
+                   help="with --record: keep every N-th frame (default 1; neighbouring frames look alike)")
     add_serve_args(p, 0, "the drive server", when="with --with-driver: ")
     p.add_argument("--lanes", help="lane method for --with-driver (default from the config)")
     p.add_argument("--no-signs", action="store_true", help="--with-driver without the sign stage")
@@ -100,23 +111,35 @@ def _run_sim(args) -> int:
     sim_cfg = SimConfig(width=args.size[0], height=args.size[1], fps=args.fps, effects=args.effects,
                         random_looks=args.random_looks, looks_seed=args.seed, laps=args.laps,
                         max_seconds=args.max_seconds, decimal=args.decimal)
-    url = None if args.with_driver else args.url
+    # --record without --with-driver: signlane's own driver, in this process and in lockstep (the teacher)
+    inprocess = args.record is not None and not args.with_driver and args.url is None
+    url = None if args.with_driver or inprocess else (args.url or "ws://127.0.0.1:4567")
     from signlane.sim.server import ServerOptions
     options = ServerOptions(host=args.host, port=args.port, web=not args.no_web, allow_control=args.allow_control)
     if args.with_driver and not args.no_web:
         from signlane.drive.web import warn_if_exposed
         warn_if_exposed(args.host, "the drive server and its monitor")
     from signlane.onnx_model import ModelError
+    from signlane.sim.drive_record import RecordError
     from signlane.sim.driver import SignStageError
+    noise = None
+    if args.perturb:
+        if not (math.isfinite(args.perturb) and 0 < args.perturb <= 1) or not args.record:
+            raise UserError(f"--perturb {args.perturb}: needs --record and a scale in (0, 1]")
+        from signlane.sim.teacher import NoiseParams, SteeringNoise
+        noise = SteeringNoise(NoiseParams(scale=args.perturb), args.seed)
     try:
-        rep = run_session(track, sim_cfg, args.out, config, url=url, lockstep=args.lockstep,
-                          with_driver=args.with_driver, video=args.video, server_options=options)
+        rep = run_session(track, sim_cfg, args.out, config, url=url, lockstep=args.lockstep or inprocess,
+                          with_driver=args.with_driver, video=args.video, server_options=options,
+                          record=args.record, noise=noise, record_every=args.record_every)
+    except RecordError as e:
+        raise UserError(str(e)) from None
     except (ModelError, SignStageError, ValueError) as e:  # the driver cannot be built: as `drive` says it
         raise UserError(str(e)) from None
     except OSError as e:
         if args.with_driver:  # our own server could not listen
             raise UserError(f"cannot serve on {args.host}:{args.port}: {e.strerror or e}") from None
-        raise UserError(f"cannot reach the drive server at {args.url} ({e}); start one with `signlane drive` "
+        raise UserError(f"cannot reach the drive server at {url} ({e}); start one with `signlane drive` "
                         "or use --with-driver") from None
     print(format_report(rep))
     if args.report:

@@ -10,11 +10,11 @@ from signlane.commands.common import UserError, positive, size_arg
 
 # --- gen ---------------------------------------------------------------------------------------
 def add_gen(sub) -> None:
-    p = sub.add_parser("gen", help="generate synthetic datasets (lanes, signs, drive)",
+    p = sub.add_parser("gen", help="generate synthetic datasets (lanes, signs, drive, pilot)",
                        description="Generate seeded synthetic datasets from the world renderer. The same "
                                    "seed gives the same files whatever --workers; an interrupted run is "
                                    "completed with --resume.")
-    kinds = p.add_subparsers(dest="kind", required=True, metavar="{lanes,signs,drive}")
+    kinds = p.add_subparsers(dest="kind", required=True, metavar="{lanes,signs,drive,pilot}")
     common = argparse.ArgumentParser(add_help=False)
     common.add_argument("--n", type=positive, required=True,
                         help="how many: lanes and drive = frames; signs = crops (about n, in ImageFolder class "
@@ -54,7 +54,34 @@ def add_gen(sub) -> None:
                                          "plus drive.mp4.")
     drive.add_argument("--size", type=size_arg, default=(640, 480), help="frame size WxH (default 640x480)")
     drive.add_argument("--fps", type=float, default=30.0, help="frames per second of the drive (default 30, as VIA)")
+    _add_gen_pilot(kinds)
     p.set_defaults(func=_run_gen)
+
+
+def _add_gen_pilot(kinds) -> None:
+    pilot = kinds.add_parser("pilot", help="teacher drives for the end-to-end pilot (recordings)",
+                             description="Many short drives of signlane's own driver (the teacher) in the local "
+                                         "simulator, lockstep, one per procedural seed and road style, each "
+                                         "recorded as `signlane sim --record` does (images/, drive.jsonl with the "
+                                         "teacher's command, lane estimate, state and desire; manifest.json with "
+                                         "track, style and looks) under OUT/drives/<style>-seed<N>/. The applied "
+                                         "steering is perturbed by smooth pulses (--perturb) so the drives show "
+                                         "the teacher steering back; the label stays its own command. Seeds "
+                                         "0-19 are the closed-loop acceptance's: train on others (default 1000+).")
+    pilot.add_argument("--n", type=positive, required=True, help="seeds (drives per style)")
+    pilot.add_argument("--out", type=Path, required=True, help="output folder")
+    pilot.add_argument("--first-seed", type=int, default=1000, help="first procedural seed (default 1000)")
+    pilot.add_argument("--style", nargs="+", choices=["via", "painted"], default=["via", "painted"],
+                       help="road styles, a drive of each seed in each (default both)")
+    pilot.add_argument("--seconds", type=float, default=30.0, help="simulated seconds per drive (default 30)")
+    pilot.add_argument("--perturb", type=float, default=0.3,
+                       help="peak steering of the perturbation pulses, 0..1 (default 0.3; 0 = none)")
+    pilot.add_argument("--every", type=positive, default=2, help="keep every N-th frame (default 2)")
+    pilot.add_argument("--looks", choices=["default", "random", "mixed"], default="mixed",
+                       help="scenery colours: the default ones, random (seeded), or mixed: every other seed "
+                            "random (default)")
+    pilot.add_argument("--workers", type=positive, default=1, help="worker processes, a drive each (default 1)")
+    pilot.add_argument("--resume", action="store_true", help="complete an interrupted run in --out")
 
 
 def _run_gen(args) -> int:
@@ -76,6 +103,13 @@ def _gen(args) -> int:
         from signlane_data.signs import generate_signs
         m = generate_signs(args.out, args.n, args.seed, crop=args.crop, workers=args.workers,
                            resume=args.resume, preview=args.preview, style=args.style or "painted")
+    elif args.kind == "pilot":
+        from signlane_data.pilot import generate_pilot_drives
+        try:
+            m = generate_pilot_drives(args.out, args.n, args.first_seed, tuple(args.style), args.seconds,
+                                      args.perturb, args.every, args.looks, workers=args.workers, resume=args.resume)
+        except ValueError as e:
+            raise UserError(str(e)) from None
     else:
         from signlane_data.drive import generate_drive
         m = generate_drive(args.out, args.n, args.seed, width=args.size[0], height=args.size[1], fps=args.fps,

@@ -11,6 +11,10 @@ machine.
 With `sync_signs=False` the sign stage runs in a worker thread beside the lane path on the
 newest frame it can take, and steering uses its latest result, so classification never stalls
 steering (real time). Synchronous signs make lockstep runs deterministic.
+
+With a pilot (`--set pilot.model=FILE`, signlane/pilot.py) the pilot's steering replaces the
+lane follower's; lanes, junctions and signs still run, because the behaviour layer plans speed,
+stops and exits from them, and the chosen exit is the pilot's desire.
 """
 from __future__ import annotations
 
@@ -38,6 +42,9 @@ class DriveStack:
             camera_forward_m=self.config.camera.forward_m))
         self.odometry = Odometry(dc.wheelbase_m)
         self.signs = self.perception.signs
+        from signlane.pilot import PilotSteering, from_config
+        model = from_config(self.config.pilot)
+        self.pilot = PilotSteering(model, self.config.pilot.junctions) if model is not None else None
         self.seq = 0
 
     @property
@@ -69,7 +76,11 @@ class DriveStack:
                                                         lane, view, two_lane)
         if was and self.behaviour.path is None:  # the tracker's last fit is from before the junction
             ps.forget_tracks()
-        timing["control"] = (time.perf_counter() - t3) * 1e3
+        t4 = time.perf_counter()
+        timing["control"] = (t4 - t3) * 1e3
+        if self.pilot is not None:
+            steering = self.pilot.steer(small, state, steering)
+            timing["pilot"] = (time.perf_counter() - t4) * 1e3
         lane = ps.in_frame_pixels(lane, w)  # report the lane in the frame's own pixels
         frame = Frame(image, t, self.seq)
         self.seq += 1

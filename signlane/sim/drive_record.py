@@ -5,9 +5,16 @@ the thread that answers the simulator.
 A recording is a folder a person can open and a learner can read:
   images/<id>.jpg   the frame exactly as the simulator sent it (its JPEG bytes, not re-encoded)
   drive.jsonl       one object per driven frame: telemetry in SI units (wheel_deg, pedal,
-                    speed_mps, time when sent), the command sent, what perception saw
-  manifest.json     written last, on a clean shutdown: counts, the resolved config. As for every
-                    signlane dataset, a folder is complete iff it holds manifest.json.
+                    speed_mps, time when sent), the command sent, what perception saw, the
+                    teacher's own command ("teacher": the label, which differs from "command"
+                    where the applied steering was perturbed on purpose) and the planner's
+                    "desire" (the exit it chose: left/straight/right)
+  manifest.json     written last, on a clean shutdown: counts, the resolved config and, from the
+                    simulator (`signlane sim --record`, `signlane gen pilot`), "drive": the track,
+                    style, looks and perturbation. As for every signlane dataset, a folder is
+                    complete iff it holds manifest.json.
+The drive server (`signlane drive --record`), `signlane sim --record` and `signlane gen pilot`
+all write this one layout; `signlane train pilot` and `signlane eval pilot` read it.
 Each image is written atomically before its JSONL line, so every line names a whole file.
 `read_recording` reads a complete one back (`signlane export-drive`, signlane/tub.py).
 """
@@ -45,24 +52,32 @@ def _round(v: float, nd: int) -> float:
     return round(float(v), nd)
 
 
-def frame_record(frame_id: str, client: int, tel: Telemetry, perception: Perception, sent: Command) -> dict:
-    """The JSONL object of one driven frame. `sent` holds the values actually sent (clipped)."""
+def frame_record(frame_id: str, client: int, tel: Telemetry, perception: Perception, sent: Command,
+                 teacher: Command | None = None, extra: dict | None = None) -> dict:
+    """The JSONL object of one driven frame. `sent` holds the values actually sent (clipped);
+    `teacher` the driver's own command where a perturbation changed what was sent (the label
+    either way); `extra` more keys (e.g. the simulator's ground truth)."""
+    from signlane.pilot import desire_of
     h, w = tel.image_bgr.shape[:2]
     lane = perception.lane
+    teacher = teacher or sent
     tel_d = {"wheel_deg": tel.wheel_deg, "pedal": tel.pedal, "speed_mps": _round(tel.speed_mps, 5)}
     if tel.time is not None:
         tel_d["time"] = tel.time
     return {"id": frame_id, "image": f"images/{frame_id}.jpg", "width": int(w), "height": int(h),
             "client": client, "t": _round(perception.frame.t, 4), "telemetry": tel_d,
-            "steering": _round(sent.steering, 4),  # the label a steering learner reads, as in lane datasets
+            "steering": _round(teacher.steering, 4),  # the label a steering learner reads, as in lane datasets
             "command": {"steering": _round(sent.steering, 4), "throttle": _round(sent.throttle, 4),
                         "state": sent.state},
+            "teacher": {"steering": _round(teacher.steering, 4), "throttle": _round(teacher.throttle, 4),
+                        "state": teacher.state},
+            "desire": desire_of(teacher.state),
             "lane": {"method": lane.method, "found": bool(lane.found), "offset": _round(lane.offset, 4),
                      "heading": _round(lane.heading, 5), "curvature": _round(lane.curvature, 6),
                      "confidence": _round(lane.confidence, 3)},
             "signs": [{"label": s.label, "score": _round(s.score, 4), "box": [int(v) for v in s.box]}
                       for s in perception.signs],
-            "timing_ms": {k: _round(v, 3) for k, v in perception.timing_ms.items()}}
+            "timing_ms": {k: _round(v, 3) for k, v in perception.timing_ms.items()}, **(extra or {})}
 
 
 @dataclass(frozen=True)
@@ -108,11 +123,21 @@ def read_recording(folder: str | Path) -> Recording:
     return Recording(folder, manifest, tuple(frames))
 
 
+def recording_folders(root: str | Path) -> list[Path]:
+    """The recordings a folder holds: itself (a drive.jsonl beside its manifest) or, for `gen
+    pilot` output or any folder of recordings, every complete one below it, sorted."""
+    root = Path(root)
+    if (root / FRAMES_FILE).is_file():
+        return [root]
+    return sorted(p.parent for p in root.rglob(FRAMES_FILE) if (p.parent / MANIFEST).is_file())
+
+
 class Recorder:
     """Writes a driving dataset; used from the DiskWriter thread only."""
 
-    def __init__(self, out: str | Path, config: Config):
+    def __init__(self, out: str | Path, config: Config, drive: dict | None = None):
         self.out = Path(out)
+        self.drive = drive  # what the simulator knows of the drive (track, style, looks), for the manifest
         if self.out.exists() and any(self.out.iterdir()):
             raise RecordError(f"{self.out} is not empty; record into a new or empty folder")
         self.config = config
@@ -127,12 +152,13 @@ class Recorder:
             raise RecordError(f"{self.out}: cannot record there ({e.strerror or e})") from None
 
     def write(self, frame_id: str, client: int, jpeg: bytes, tel: Telemetry, perception: Perception,
-              sent: Command) -> None:
+              sent: Command, teacher: Command | None = None, extra: dict | None = None) -> None:
         if jpeg[:2] != b"\xff\xd8":  # a PNG or other image OpenCV decoded: store it as the JPEG it claims
             ok, buf = cv2.imencode(".jpg", tel.image_bgr, [cv2.IMWRITE_JPEG_QUALITY, 95])
             jpeg = buf.tobytes() if ok else jpeg
         atomic_write_bytes(self.out / "images" / f"{frame_id}.jpg", jpeg)
-        line = json.dumps(frame_record(frame_id, client, tel, perception, sent), separators=(",", ":"))
+        line = json.dumps(frame_record(frame_id, client, tel, perception, sent, teacher, extra),
+                          separators=(",", ":"))
         os.write(self._fd, (line + "\n").encode("utf-8"))
         self.frames += 1
         self.clients.add(client)
@@ -147,7 +173,7 @@ class Recorder:
             "created": self.started, "finished": datetime.now(timezone.utc).isoformat(timespec="seconds"),
             "counts": {"frames": self.frames, "clients": len(self.clients)},
             "files": {"frames": FRAMES_FILE, "images": "images/<id>.jpg"},
-            "config": self.config.to_dict()}, fsync=True)
+            "config": self.config.to_dict(), **({"drive": self.drive} if self.drive else {})}, fsync=True)
         log.info("recorded %d frames from %d client(s) in %s", self.frames, len(self.clients), self.out)
 
 

@@ -75,12 +75,42 @@ def _loop_length(track: Track) -> float | None:
         return None
 
 
+def drive_meta(track: Track, sim_config: SimConfig, noise=None, every: int = 1) -> dict:
+    """What a recording's manifest says of the drive: track, style, looks, frame rate, noise."""
+    from dataclasses import asdict
+    return {"track": track.name, "source": getattr(track, "source", ""), "style": track.style.kind,
+            "looks": {"random": bool(sim_config.random_looks), "seed": int(sim_config.looks_seed)},
+            "effects": sim_config.effects, "fps": sim_config.fps, "size": [sim_config.width, sim_config.height],
+            "record_every": int(every), "perturb": asdict(noise.p) if noise is not None else None}
+
+
+def _inprocess(sim, driver, progress, record, config, meta, noise, every) -> dict:
+    """run_inprocess, recording the teacher's drive where asked."""
+    if record is None:
+        return run_inprocess(sim, driver, progress)
+    from signlane.sim.drive_record import Recorder
+    from signlane.sim.teacher import TeacherRecorder
+    recorder = Recorder(record, config, meta)
+    try:
+        return run_inprocess(sim, TeacherRecorder(driver, recorder, noise, every), progress)
+    finally:
+        recorder.close()
+
+
 def run_session(track: Track, sim_config: SimConfig, out: Path | None, config: Config | None = None,
                 url: str | None = None, lockstep: bool = True, with_driver: bool = False,
-                video: bool = False, show_progress: bool = True, server_options=None) -> dict:
+                video: bool = False, show_progress: bool = True, server_options=None,
+                record: Path | None = None, noise=None, record_every: int = 1) -> dict:
     """Drive one run; returns the report (also written to out/report.json with out/path.png).
     server_options: the in-process drive server's (with_driver; default a free port on 127.0.0.1
-    with the monitor on); its sync_signs follows `lockstep`."""
+    with the monitor on); its sync_signs follows `lockstep`.
+    record: a folder for the drive recording (signlane/sim/drive_record.py), made by the
+    in-process driver (every `record_every`-th frame, the applied steering perturbed by `noise`,
+    a signlane.sim.teacher.SteeringNoise) or by the drive server (with_driver)."""
+    if record is not None and url is not None:
+        raise ValueError("--record: a remote drive server records with its own `signlane drive --record`")
+    if noise is not None and (with_driver or url is not None):
+        raise ValueError("--perturb needs the in-process driver (no --with-driver, no --url)")
     sim = Simulator(track, sim_config)
     config = config or Config()
     # the bar counts metres along the start's loop (a whole lap of laps would sit at 0 for minutes)
@@ -116,12 +146,14 @@ def run_session(track: Track, sim_config: SimConfig, out: Path | None, config: C
             if url is None and not with_driver:
                 from signlane.sim.driver import Driver
                 with Driver(config, sync_signs=lockstep) as driver:
-                    rep = run_inprocess(sim, driver, progress)
+                    rep = _inprocess(sim, driver, progress, record, config, drive_meta(track, sim_config, noise,
+                                                                                       record_every), noise, record_every)
                     rep["decisions"] = driver.behaviour.decisions  # what the driver saw at each junction
             elif with_driver:
                 from dataclasses import replace
                 from signlane.sim.server import DriveServer, ServerOptions
                 options = replace(server_options or ServerOptions(port=0), sync_signs=lockstep)
+                options = replace(options, record=record) if record is not None else options
                 srv = DriveServer(config, options, driver_factory=seen)
                 with srv:
                     if seen is not None:

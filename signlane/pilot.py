@@ -1,0 +1,128 @@
+"""The end-to-end pilot: an ONNX net that maps a camera frame (and the planner's chosen exit, the
+"desire") to steering, trained on the autopilot's own drives (`signlane train pilot`).
+
+Contract (signlane/onnx_model.py, task "pilot"): one image input as its metadata says, one
+output (N, classes). The classes name what each output column is:
+- `steering`: one steering value in [-1, 1] (+ right) whatever the desire: S3's PilotNet.
+- `steering/left`, `steering/straight`, `steering/right`: one steering branch per desire
+  (conditional imitation: the planner picks the branch), and `speed`: the teacher's target
+  speed in m/s, predicted beside it.
+The one pre-processing for training, export parity, evaluation and the runtime is
+`preprocess_frames`; `desire_of` maps the behaviour's state to a desire, in one place.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+from signlane.onnx_model import InputSpec, ModelError, OnnxModel, prepare_input
+
+TASK = "pilot"
+DESIRES = ("left", "straight", "right")
+STEERING = "steering"
+SPEED = "speed"
+BRANCHES = tuple(f"{STEERING}/{d}" for d in DESIRES)
+PILOTNET_CLASSES = (STEERING,)
+BRANCHED_CLASSES = BRANCHES + (SPEED,)
+# S3: HSV scaled to [0, 1] (OpenCV's hue runs 0..179: its std of 180/255 makes it h / 180)
+PILOTNET_SPEC = InputSpec(160, 120, "HSV", "NCHW", 1.0 / 255.0, (0.0, 0.0, 0.0), (180.0 / 255.0, 1.0, 1.0))
+SMALL_SPEC = InputSpec(96, 72, "HSV", "NCHW", 1.0 / 255.0, (0.0, 0.0, 0.0), (180.0 / 255.0, 1.0, 1.0))
+DEFAULT_MODEL = Path(__file__).resolve().parent / "models" / "pilot.onnx"
+
+
+def desire_of(state: str) -> str:
+    """The desire the planner feeds the pilot for a behaviour state: the exit of a planned
+    junction (`junction-left` -> left), else straight on along the lane."""
+    if state.startswith("junction-"):
+        turn = state.split("-", 1)[1]
+        if turn in DESIRES:
+            return turn
+    return "straight"
+
+
+def flip_desire(desire: str) -> str:
+    """The desire in a mirrored frame: left and right swap."""
+    return {"left": "right", "right": "left"}.get(desire, desire)
+
+
+def preprocess_frames(frames_bgr: list[np.ndarray], spec: InputSpec) -> np.ndarray:
+    """uint8 BGR frames (H, W, 3), any size -> float32 (N, 3, spec.height, spec.width) input."""
+    return prepare_input(frames_bgr, spec, "frame")
+
+
+@dataclass(frozen=True)
+class PilotOutput:
+    steering: float  # [-1, 1], + right, for the desire asked
+    speed: float | None  # m/s, where the model predicts it
+
+
+def read_outputs(row: np.ndarray, classes: list[str] | tuple[str, ...], desire: str) -> PilotOutput:
+    """One output row (classes,) -> the steering for `desire` (clamped to [-1, 1]) and the
+    speed where the model has one."""
+    names = list(classes)
+    key = f"{STEERING}/{desire}"
+    col = names.index(key) if key in names else names.index(STEERING)
+    speed = float(row[names.index(SPEED)]) if SPEED in names else None
+    return PilotOutput(float(np.clip(row[col], -1.0, 1.0)), speed)
+
+
+def check_classes(classes: list[str], where: str) -> None:
+    """A pilot's outputs are PilotNet's one steering or the three desire branches (+ speed)."""
+    if tuple(classes) not in (PILOTNET_CLASSES, BRANCHES, BRANCHED_CLASSES):
+        raise ModelError(f"{where}: pilot outputs {classes} are neither {list(PILOTNET_CLASSES)} nor "
+                         f"{list(BRANCHED_CLASSES)}")
+
+
+class PilotModel:
+    """The pilot with its contract read from the ONNX metadata. A lane or sign model given as a
+    pilot (or a pilot given as one of them) is refused by its task, in one line."""
+
+    def __init__(self, path: str | Path = DEFAULT_MODEL, threads: int = 1):
+        self.model = OnnxModel(path, TASK, threads, output_rank=2)
+        check_classes(self.model.classes, str(path))
+        self.spec = self.model.input
+        self.classes = tuple(self.model.classes)
+        self.branched = BRANCHES[0] in self.classes
+
+    def predict(self, frames_bgr: list[np.ndarray]) -> np.ndarray:
+        """float32 (N, classes) raw outputs."""
+        return self.model.run(preprocess_frames(frames_bgr, self.spec))
+
+    def step(self, frame_bgr: np.ndarray, desire: str = "straight") -> PilotOutput:
+        return read_outputs(self.predict([frame_bgr])[0], self.classes, desire)
+
+
+@lru_cache(maxsize=4)
+def load(path: str, threads: int = 1) -> PilotModel:
+    """One session per (file, threads) per process."""
+    return PilotModel(path, threads)
+
+
+def from_config(pilot_cfg) -> PilotModel | None:
+    """The pilot a config names (signlane.config.PilotConfig), or None where it names none.
+    ModelError (one line) for a file that is missing or not a pilot."""
+    spec = pilot_cfg.model.strip()
+    if not spec:
+        return None
+    path = DEFAULT_MODEL if spec == "shipped" else Path(spec)
+    return load(str(path), pilot_cfg.threads)
+
+
+class PilotSteering:
+    """The pilot's place in the drive stack: given the frame and what the behaviour decided,
+    the steering sent. The planner's speed and state stay; at a planned junction the pilot is
+    told the exit (its desire), or the planner's path steers there (junctions = "planner")."""
+
+    def __init__(self, model: PilotModel, junctions: str = "planner"):
+        self.model, self.junctions = model, junctions
+        self.last: PilotOutput | None = None
+
+    def steer(self, frame_bgr: np.ndarray, state: str, planner_steering: float) -> float:
+        if self.junctions == "planner" and state.startswith("junction-"):
+            self.last = None
+            return planner_steering
+        self.last = self.model.step(frame_bgr, desire_of(state))
+        return self.last.steering

@@ -1,0 +1,248 @@
+"""The end-to-end pilot: teacher recordings with perturbation, steering-consistent augmentation,
+the model contract, and a smoke run recording -> training -> export -> parity -> a closed-loop
+drive -> offline evaluation."""
+import json
+
+import cv2
+import numpy as np
+import pytest
+
+from signlane.cli import main
+from signlane.config import Config
+from signlane.onnx_model import ModelError
+from signlane.pilot import BRANCHED_CLASSES, PilotModel, desire_of, read_outputs
+from signlane.sim.teacher import NoiseParams, SteeringNoise, TeacherRecorder
+from signlane.types import Command, Frame, LaneEstimate, Perception
+
+
+# --- teacher perturbation -------------------------------------------------------------------------
+def test_noise_pulses_are_bounded_seeded_and_pause_at_junctions_and_stops():
+    def run(seed, state="cruise"):
+        noise = SteeringNoise(NoiseParams(scale=0.3), seed)
+        return np.array([noise.step(i / 30, state, 5.0) for i in range(1800)])
+    a, b = run(4), run(4)
+    assert np.array_equal(a, b)  # seeded
+    assert np.abs(a).max() <= 0.3 + 1e-9 and np.abs(a).max() > 0.1  # pulses happen, within the scale
+    assert 0.05 < np.mean(a != 0) < 0.6  # the car is mostly driven by the teacher alone
+    assert not run(4, "junction-left").any() and not run(4, "stopping").any()
+    slow = SteeringNoise(NoiseParams(scale=0.3), 4)
+    assert not any(slow.step(i / 30, "cruise", 0.2) for i in range(600))  # no pulse starts while crawling
+
+
+class _FakeDriver:
+    def step(self, telemetry, now=None):
+        img = telemetry.image_bgr
+        lane = LaneEstimate("fake", True, curvature=0.02)
+        return Perception(Frame(img, now or 0.0), lane), Command(0.25, 0.4, "cruise")
+
+    def close(self):
+        pass
+
+
+class _Recorder:
+    def __init__(self):
+        self.rows = []
+
+    def write(self, frame_id, client, jpeg, tel, perception, sent, teacher=None, extra=None):
+        self.rows.append((frame_id, sent, teacher, extra))
+
+
+def test_the_recorded_label_is_the_teachers_clean_command_while_the_noisy_one_is_applied():
+    from signlane.sim.protocol import Telemetry
+    rec = _Recorder()
+    drv = TeacherRecorder(_FakeDriver(), rec, SteeringNoise(NoiseParams(scale=0.3, gap_s=0.2), 1), every=2)
+    tel = Telemetry(0.0, 0.0, 5.0, np.zeros((48, 64, 3), np.uint8), jpeg=b"\xff\xd8")
+    applied = [drv.step(tel, now=i / 30)[1].steering for i in range(300)]
+    assert len(rec.rows) == 150  # every 2nd frame
+    assert all(t.steering == 0.25 for _, _, t, _ in rec.rows)  # the label: the teacher's own
+    noisy = [(s.steering, e["noise"]) for _, s, _, e in rec.rows if e["noise"] != 0]
+    assert noisy and all(abs(s - (0.25 + n)) < 1e-3 for s, n in noisy)  # applied = teacher + noise
+    assert max(abs(a - 0.25) for a in applied) > 0.1
+
+
+# --- augmentation keeps the label true ---------------------------------------------------------
+def test_flip_negates_steering_and_swaps_desire_and_is_its_own_inverse():
+    from signlane_train.pilot_data import flip_sample
+    img = np.random.default_rng(0).integers(0, 255, (30, 40, 3), dtype=np.uint8)
+    f, s, d = flip_sample(img, 0.3, "left")
+    assert (s, d) == (-0.3, "right") and np.array_equal(f[:, 0], img[:, -1])
+    back, s2, d2 = flip_sample(f, s, d)
+    assert np.array_equal(back, img) and (s2, d2) == (0.3, "left")
+    assert flip_sample(img, -0.1, "straight")[2] == "straight"
+
+
+def test_flipped_frames_make_the_teacher_steer_the_mirrored_way():
+    """The relabelling is what the teacher itself says of the mirrored frame (VIA's symmetric
+    carriageway): the car placed off centre and askew, the teacher's steering on the frame and
+    on its mirror image are opposite."""
+    from signlane.drive.stack import DriveStack
+    from signlane.sim.simulator import SimConfig, Simulator
+    from signlane.world.maps import load_track
+    from signlane.world.route import Pose
+    from signlane_train.pilot_data import flip_sample
+    sim = Simulator(load_track("loop_demo", "via"), SimConfig(image_lag_frames=0))
+    p = sim.vehicle.pose
+    right = np.array([np.sin(p.heading), -np.cos(p.heading)])
+    steer = []
+    for shift, yaw in ((0.5, 0.12), (-0.4, -0.08)):
+        sim.vehicle.pose = Pose(p.x + shift * right[0], p.y + shift * right[1], p.heading - yaw)
+        sim.observe()
+        img = sim.last_image
+        pair = []
+        for frame in (img, flip_sample(img, 0.0, "straight")[0]):
+            with DriveStack(Config.load(None, ["signs.enabled=false"])) as stack:
+                pair.append(stack.drive(frame, 3.0, 0.0, 0.0)[1].steering)
+        steer.append(pair)
+    for s, mirrored in steer:
+        assert abs(s) > 0.05  # off centre and askew: the teacher steers
+        assert mirrored == pytest.approx(-s, abs=0.25 * abs(s) + 0.02)
+    assert steer[0][0] * steer[1][0] < 0  # opposite placements, opposite steering
+
+
+def test_a_shift_right_adds_right_steering_in_proportion():
+    from signlane_train.pilot_data import shift_sample
+    img = np.zeros((120, 160, 3), np.uint8)
+    img[:, 70:90] = 255
+    moved, s = shift_sample(img, 0.1, 10.0, gain=1.8)
+    assert moved[:, 81:99].min() == 255 and moved[:, 70:79].max() == 0  # the content moved right
+    assert s == pytest.approx(0.1 + 1.8 * np.arctan(10 / (80 / np.tan(np.radians(75.18) / 2))), abs=1e-6)
+    assert shift_sample(img, 0.1, -10.0, gain=1.8)[1] < 0.1 < s
+
+
+def test_desire_follows_the_planned_exit_and_picks_the_branch():
+    assert desire_of("junction-left") == "left" and desire_of("junction-right") == "right"
+    assert desire_of("cruise") == desire_of("stopped") == desire_of("junction-straight") == "straight"
+    row = np.array([-0.5, 0.1, 0.7, 4.2], np.float32)
+    assert read_outputs(row, BRANCHED_CLASSES, "left").steering == pytest.approx(-0.5)
+    assert read_outputs(row, BRANCHED_CLASSES, "right").steering == pytest.approx(0.7)
+    assert read_outputs(row, BRANCHED_CLASSES, "straight").speed == pytest.approx(4.2)
+    assert read_outputs(np.array([3.0]), ("steering",), "left").steering == 1.0  # clamped; one branch for all
+
+
+# --- smoke: recording -> training -> export -> parity -> closed loop -> eval ---------------------------
+@pytest.fixture(scope="module")
+def pilot(tmp_path_factory):
+    root = tmp_path_factory.mktemp("pilot")
+    rec = root / "rec"
+    assert main(["sim", "--track", "random", "--seed", "1001", "--record", str(rec), "--perturb", "0.3",
+                 "--max-seconds", "5", "--no-signs"]) == 0
+    from signlane_export.pilot import export_pilot
+    from signlane_train.pilot import train_pilot
+    report = train_pilot([rec], root / "run", arch="small", epochs=1, quiet=True, threads=1, val_fraction=0.5,
+                         width=8)
+    onnx_path = root / "pilot.onnx"
+    exported = export_pilot(report["best_checkpoint"], onnx_path)
+    return root, rec, report, onnx_path, exported
+
+
+def test_sim_record_writes_the_drive_layout_with_teacher_desire_and_manifest(pilot):
+    _, rec, *_ = pilot
+    manifest = json.loads((rec / "manifest.json").read_text())
+    assert manifest["drive"]["style"] == "via" and manifest["drive"]["track"] == "procedural-1001"
+    n = manifest["counts"]["frames"]
+    assert manifest["drive"]["perturb"]["scale"] == 0.3 and n in (150, 151)  # 5 s at 30 frames/s
+    frames = [json.loads(line) for line in (rec / "drive.jsonl").read_text().splitlines()]
+    assert len(frames) == n and all((rec / f["image"]).is_file() for f in frames)
+    f = frames[-1]
+    assert f["steering"] == f["teacher"]["steering"] and f["desire"] in ("left", "straight", "right")
+    assert abs(f["command"]["steering"] - f["teacher"]["steering"] - f["noise"]) < 2e-4
+    from signlane.sim.drive_record import read_recording
+    assert len(read_recording(rec).frames) == n  # export-drive's reader takes it as it is
+
+
+def test_export_matches_torch_and_the_runtime_loads_it(pilot):
+    root, rec, report, onnx_path, exported = pilot
+    assert exported["parity_max_abs"] <= 1e-4 and exported["classes"] == list(BRANCHED_CLASSES)
+    assert report["train_frames"] > 0 and np.isfinite(report["val_steering_mae"])
+    model = PilotModel(onnx_path)
+    assert model.spec.color == "HSV" and (model.spec.width, model.spec.height) == (96, 72)
+    # the runtime's pre-processing is training's: the checkpoint on the same frame gives the same output
+    import torch
+    from signlane.pilot import preprocess_frames
+    from signlane_train.pilot_task import PilotTask
+    img = cv2.imread(str(next((rec / "images").iterdir())))
+    task = PilotTask.load_from_checkpoint(report["best_checkpoint"], map_location="cpu").eval()
+    with torch.no_grad():
+        ref = task(torch.from_numpy(preprocess_frames([img], model.spec))).numpy()[0]
+    assert np.allclose(model.predict([img])[0], ref, atol=1e-4)
+
+
+def test_a_short_closed_loop_drive_steers_with_the_pilot(pilot):
+    from signlane.sim.session import run_session
+    from signlane.sim.simulator import SimConfig
+    from signlane.world.maps import load_track
+    root, _, _, onnx_path, _ = pilot
+    cfg = Config.load(None, [f"pilot.model={onnx_path}", "signs.enabled=false", "pilot.junctions=pilot"])
+    from signlane.sim.driver import Driver
+    seen = []
+
+    class Tap(Driver):
+        def step(self, telemetry, now=None):
+            perception, cmd = super().step(telemetry, now)
+            seen.append((perception.timing_ms.get("pilot"), cmd.steering, self.pilot.last.steering))
+            return perception, cmd
+    from signlane.sim.simulator import Simulator, run_inprocess
+    sim = Simulator(load_track("random", "via", 3), SimConfig(max_seconds=2.0))
+    with Tap(cfg) as d:
+        rep = run_inprocess(sim, d)
+    assert len(seen) == 60 and all(ms is not None and ms > 0 for ms, _, _ in seen)
+    assert all(s == p for _, s, p in seen)  # the steering sent is the pilot's
+    assert rep["time_s"] == pytest.approx(2.0, abs=0.05)
+    assert run_session(load_track("random", "via", 3), SimConfig(max_seconds=1.0), None, cfg,
+                       show_progress=False)["time_s"] == pytest.approx(1.0, abs=0.05)
+
+
+def test_at_a_planned_junction_the_planner_steers_by_default_or_the_pilot_told_the_exit():
+    from signlane.pilot import PilotSteering
+
+    class Model:
+        def __init__(self):
+            self.asked = []
+
+        def step(self, frame, desire):
+            from signlane.pilot import PilotOutput
+            self.asked.append(desire)
+            return PilotOutput({"left": -0.6, "straight": 0.05, "right": 0.6}[desire], 3.0)
+    img = np.zeros((8, 8, 3), np.uint8)
+    m = Model()
+    assert PilotSteering(m).steer(img, "junction-left", -0.3) == -0.3 and m.asked == []
+    assert PilotSteering(m).steer(img, "cruise", -0.3) == 0.05
+    told = PilotSteering(m, "pilot")
+    assert told.steer(img, "junction-left", -0.3) == -0.6 and told.steer(img, "junction-right", 0.2) == 0.6
+    assert m.asked == ["straight", "left", "right"] and told.last.speed == 3.0
+
+
+def test_eval_pilot_scores_models_side_by_side_and_draws(pilot, tmp_path, capsys):
+    root, rec, _, onnx_path, _ = pilot
+    assert main(["eval", "pilot", str(rec), "--model", str(onnx_path), "--model", str(onnx_path),
+                 "--out", str(tmp_path), "--json", str(tmp_path / "s.json")]) == 0
+    s = json.loads((tmp_path / "s.json").read_text())
+    n = json.loads((rec / "manifest.json").read_text())["counts"]["frames"]
+    assert s["frames"] == n and list(s["models"]) == ["pilot", "pilot_2"]
+    a, b = s["models"]["pilot"], s["models"]["pilot_2"]
+    assert a == b and 0 < a["all"]["mae"] <= a["all"]["rmse"] and a["all"]["frames"] == n
+    assert sum(a[k]["frames"] for k in a if k.split()[0] in ("straight", "bend", "turn")) == n
+    for name in ("steering.png", "disagree_pilot.png", "disagree_pilot_2.png"):
+        img = cv2.imread(str(tmp_path / name))
+        assert img is not None and img.shape[0] > 100
+    assert "pilot MAE / RMSE" in capsys.readouterr().out
+
+
+# --- the contract -----------------------------------------------------------------------------------
+def test_the_contract_refuses_lane_and_sign_models_as_pilots_and_a_pilot_as_either(pilot, capsys):
+    from signlane.lanes.seg_model import DEFAULT_MODEL as LANES, LaneSegModel
+    from signlane.signs.classifier import DEFAULT_MODEL as SIGNS, SignClassifier
+    _, _, _, onnx_path, _ = pilot
+    for other in (LANES, SIGNS):
+        with pytest.raises(ModelError, match="expected 'pilot'"):
+            PilotModel(other)
+    with pytest.raises(ModelError, match="is 'pilot', expected 'lane-segmentation'"):
+        LaneSegModel(onnx_path)
+    with pytest.raises(ModelError, match="is 'pilot'"):
+        SignClassifier(onnx_path)
+    assert main(["sim", "--track", "random", "--record", str(onnx_path.parent / "x"), "--max-seconds", "1",
+                 "--set", f"pilot.model={LANES}"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert "lanes.onnx" in err[-1] and "expected 'pilot'" in err[-1]
+    with pytest.raises(ValueError, match="pilot.junctions"):
+        Config.load(None, ["pilot.junctions=sometimes"])

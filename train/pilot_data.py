@@ -1,0 +1,203 @@
+"""Pilot training data: drive recordings (`signlane sim --record`, `signlane gen pilot`, `signlane
+drive --record`: signlane/sim/drive_record.py), one item per recorded frame with the teacher's
+steering as the label, the planner's desire and the teacher's target speed.
+
+Augmentations that keep the label true to the picture (`steering_augment`):
+- horizontal flip: the mirrored road bends the other way, so steering is negated and the desire
+  left/right swapped;
+- horizontal shift by dx pixels: for the far road, the view of a car turned by atan(dx / f)
+  (f: the camera's focal length in pixels), so the label gains the steering that the teacher's
+  pursuit gives for that heading error (`shift_gain` per radian);
+- small roll: the heading does not change, nor the label.
+Light and colour changes (albumentations) never touch the label. Frames are decoded once, at
+the cache size, and kept in memory (the input sizes are small).
+"""
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import albumentations as A
+import cv2
+import lightning as L
+import numpy as np
+import torch
+from torch.utils.data import DataLoader, Dataset
+from tqdm import tqdm
+
+from signlane.onnx_model import InputSpec
+from signlane.pilot import DESIRES, flip_desire, preprocess_frames
+from signlane.splits import VAL_FRACTION, split_of
+from signlane_train.common import seed_worker
+
+CACHE_SIZE = (160, 120)  # frames are kept at this size (the largest pilot input)
+HFOV_DEG = 75.18  # the camera's horizontal field of view (signlane.config.CameraConfig)
+SPLIT_BLOCK = 50  # consecutive recorded frames share a side of the split (neighbours look alike)
+
+
+@dataclass(frozen=True)
+class PilotItem:
+    image: Path
+    steering: float  # the teacher's, [-1, 1]
+    desire: str
+    speed: float  # the teacher's target speed, m/s
+    curvature: float  # the teacher's lane estimate, 1/m (for error by curvature bin)
+    key: str  # for the split: drive folder + block
+
+
+def read_items(roots: list[str | Path]) -> list[PilotItem]:
+    """Every frame of every recording under the roots; ValueError naming a root with none or a
+    malformed line."""
+    from signlane.sim.drive_record import RecordError, read_recording, recording_folders
+    items: list[PilotItem] = []
+    for root in map(Path, roots):
+        folders = recording_folders(root)
+        if not folders:
+            raise ValueError(f"{root}: no drive recording (drive.jsonl + manifest.json) in or under it")
+        for folder in folders:
+            try:
+                rec = read_recording(folder)
+            except RecordError as e:
+                raise ValueError(str(e)) from None
+            max_speed = float(rec.manifest.get("config", {}).get("drive", {}).get("max_speed", 13.41))
+            for n, f in enumerate(rec.frames):
+                try:
+                    teacher = f.get("teacher") or f["command"]
+                    desire = f.get("desire", "straight")
+                    items.append(PilotItem(rec.image_path(f), float(f["steering"]),
+                                           desire if desire in DESIRES else "straight",
+                                           float(teacher["throttle"]) * max_speed,
+                                           float(f.get("lane", {}).get("curvature", 0.0)),
+                                           f"{folder.name}/{n // SPLIT_BLOCK}"))
+                except (KeyError, TypeError, ValueError) as e:
+                    raise ValueError(f"{folder}/drive.jsonl: frame {f.get('id')!r} lacks {e}") from None
+    if not items:
+        raise ValueError(f"{', '.join(map(str, roots))}: the recordings hold no frames")
+    return items
+
+
+def load_frames(items: list[PilotItem], size: tuple[int, int] = CACHE_SIZE, desc: str = "frames") -> np.ndarray:
+    """uint8 (N, h, w, 3) BGR frames at `size` (w, h), area-resized as the runtime shrinks them."""
+    out = np.empty((len(items), size[1], size[0], 3), np.uint8)
+    for i, it in enumerate(tqdm(items, desc=desc, unit="frame", leave=False, disable=len(items) < 200)):
+        img = cv2.imread(str(it.image), cv2.IMREAD_COLOR)
+        if img is None:
+            raise ValueError(f"{it.image}: unreadable")
+        out[i] = cv2.resize(img, size, interpolation=cv2.INTER_AREA)
+    return out
+
+
+@dataclass(frozen=True)
+class AugmentParams:
+    flip: float = 0.5  # probability of a mirrored frame
+    shift: float = 0.08  # max |dx| as a fraction of the width
+    shift_p: float = 0.5
+    shift_gain: float = 1.8  # steering per radian of heading error (VIA's car, pursuit at ~5 m)
+    roll_deg: float = 2.0
+    photometric: bool = True
+
+
+def flip_sample(image: np.ndarray, steering: float, desire: str) -> tuple[np.ndarray, float, str]:
+    """A mirrored frame and its label: steering negated, left/right desire swapped."""
+    return image[:, ::-1].copy(), -steering, flip_desire(desire)
+
+
+def shift_sample(image: np.ndarray, steering: float, dx: float, gain: float,
+                 hfov_deg: float = HFOV_DEG) -> tuple[np.ndarray, float]:
+    """The frame moved dx pixels right (the road appears to the right: the car points left of
+    it) and the label that steers back: + gain * atan(dx / f), clamped to [-1, 1]."""
+    h, w = image.shape[:2]
+    f = (w / 2) / math.tan(math.radians(hfov_deg) / 2)
+    m = np.float32([[1, 0, dx], [0, 1, 0]])
+    out = cv2.warpAffine(image, m, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    return out, float(np.clip(steering + gain * math.atan(dx / f), -1.0, 1.0))
+
+
+def roll_sample(image: np.ndarray, deg: float) -> np.ndarray:
+    h, w = image.shape[:2]
+    m = cv2.getRotationMatrix2D((w / 2, h / 2), deg, 1.0)
+    return cv2.warpAffine(image, m, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+
+
+def photometric(seed: int | None = None) -> A.Compose:
+    """Light, colour and sensor changes: labels unchanged."""
+    return A.Compose([
+        A.RandomBrightnessContrast(brightness_limit=0.3, contrast_limit=0.3, p=0.7),
+        A.HueSaturationValue(hue_shift_limit=12, sat_shift_limit=30, val_shift_limit=20, p=0.5),
+        A.RandomShadow(shadow_roi=(0, 0.4, 1, 1), num_shadows_limit=(1, 2), p=0.2),
+        A.GaussNoise(std_range=(0.01, 0.05), p=0.3),
+        A.ImageCompression(quality_range=(40, 95), p=0.3),
+    ], seed=seed)
+
+
+def steering_augment(image: np.ndarray, steering: float, desire: str, rng, p: AugmentParams) -> tuple[np.ndarray, float, str]:
+    """One draw of the geometric augmentations with the label each implies; rng: anything with
+    numpy's random() and uniform() (a Generator, or the np.random module)."""
+    if rng.random() < p.flip:
+        image, steering, desire = flip_sample(image, steering, desire)
+    if p.shift > 0 and rng.random() < p.shift_p:
+        image, steering = shift_sample(image, steering, float(rng.uniform(-p.shift, p.shift)) * image.shape[1],
+                                       p.shift_gain)
+    if p.roll_deg > 0:
+        image = roll_sample(image, float(rng.uniform(-p.roll_deg, p.roll_deg)))
+    return image, steering, desire
+
+
+class PilotDataset(Dataset):
+    """(input float32 (3, h, w), steering, desire index, speed) per frame."""
+
+    def __init__(self, items: list[PilotItem], frames: np.ndarray, spec: InputSpec,
+                 augment: AugmentParams | None = None, seed: int = 0):
+        self.items, self.frames, self.spec, self.params = items, frames, spec, augment
+        self.augment = photometric(seed) if augment is not None and augment.photometric else None
+
+    def __len__(self) -> int:
+        return len(self.items)
+
+    def __getitem__(self, i: int):
+        it = self.items[i]
+        img, steering, desire = self.frames[i], it.steering, it.desire
+        if self.params is not None:
+            # numpy's global generator: seeded by seed_everything, and per loader worker by seed_worker
+            img, steering, desire = steering_augment(img, steering, desire, np.random, self.params)
+            if self.augment is not None:
+                img = self.augment(image=np.ascontiguousarray(img))["image"]
+        x = preprocess_frames([np.ascontiguousarray(img)], self.spec)[0]
+        return (torch.from_numpy(x), torch.tensor(steering, dtype=torch.float32),
+                torch.tensor(DESIRES.index(desire)), torch.tensor(it.speed, dtype=torch.float32))
+
+
+class PilotDataModule(L.LightningDataModule):
+    def __init__(self, roots: list[str | Path], spec: InputSpec, batch_size: int = 100,
+                 val_fraction: float = VAL_FRACTION, augment: AugmentParams | None = AugmentParams(),
+                 workers: int = 0, seed: int = 0):
+        super().__init__()
+        self.roots = [Path(r) for r in roots]
+        self.spec, self.batch_size, self.val_fraction = spec, batch_size, val_fraction
+        self.augment, self.workers, self.seed = augment, workers, seed
+        self.train_items: list[PilotItem] = []
+
+    def setup(self, stage: str | None = None) -> None:
+        if self.train_items:
+            return
+        items = read_items(self.roots)
+        train = [i for i, it in enumerate(items) if split_of(it.key, self.val_fraction) == "train"]
+        val = [i for i, it in enumerate(items) if split_of(it.key, self.val_fraction) == "val"]
+        if not train or not val:
+            raise ValueError(f"need frames on both sides of the split; got {len(train)} train, {len(val)} val "
+                             f"(blocks of {SPLIT_BLOCK} frames per side: record more)")
+        frames = load_frames(items)
+        self.train_items, self.val_items = [items[i] for i in train], [items[i] for i in val]
+        self.train_frames, self.val_frames = frames[train], frames[val]
+
+    def train_dataloader(self) -> DataLoader:
+        ds = PilotDataset(self.train_items, self.train_frames, self.spec, self.augment, self.seed)
+        return DataLoader(ds, batch_size=self.batch_size, shuffle=True, num_workers=self.workers,
+                          worker_init_fn=seed_worker, persistent_workers=self.workers > 0,
+                          drop_last=len(ds) > 2 * self.batch_size)
+
+    def val_dataloader(self) -> DataLoader:
+        return DataLoader(PilotDataset(self.val_items, self.val_frames, self.spec), batch_size=256,
+                          num_workers=0)
