@@ -74,6 +74,12 @@ class Summary:
         return [("camera", row)]
 
 
+def _at_size(mask: np.ndarray, w: int, h: int) -> np.ndarray:
+    """A mask as uint8 0/255 at the input's size (a method may work on a scaled copy)."""
+    m = (mask > 0).astype(np.uint8) * 255
+    return m if m.shape[:2] == (h, w) else cv2.resize(m, (w, h), interpolation=cv2.INTER_NEAREST)
+
+
 def record(source: str, index: int, p: Perception, cmd: Command) -> dict:
     """The per-frame JSON object of the infer contract."""
     h, w = p.frame.image_bgr.shape[:2]
@@ -157,10 +163,9 @@ class Writer:
             h, w = p.frame.image_bgr.shape[:2]
             mask = p.lane.debug_mask if p.lane.debug_mask is not None else np.zeros((h, w), np.uint8)
             name = f"{stem}_lane.png" if src.kind == "image" else f"{stem}_{index:06d}_lane.png"
-            write_image(self.out / name, (mask > 0).astype(np.uint8) * 255)
+            write_image(self.out / name, _at_size(mask, w, h))
             if p.lane.drivable_mask is not None:  # the method has a road output
-                write_image(self.out / name.replace("_lane.png", "_drivable.png"),
-                            (p.lane.drivable_mask > 0).astype(np.uint8) * 255)
+                write_image(self.out / name.replace("_lane.png", "_drivable.png"), _at_size(p.lane.drivable_mask, w, h))
 
     def end_source(self, ok: bool) -> None:
         if self._video is not None:
