@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from signlane_export.onnx_export import export_onnx, run_dir_of, training_info
+from signlane_export.onnx_export import export_onnx, load_task, run_metrics, training_info
 from signlane.lanes.seg_model import CLASSES, DEFAULT_SPEC, ROAD_CLASSES, TASK
 from signlane.onnx_model import make_metadata
 
@@ -17,17 +17,10 @@ def export_lanes(ckpt: str | Path, out: str | Path, metrics: dict | None = None,
     from signlane_train.lane_net import count_parameters
     from signlane_train.lane_task import LaneTask
     ckpt, out = Path(ckpt), Path(out)
-    if not ckpt.is_file():
-        raise ValueError(f"{ckpt}: checkpoint not found")
-    try:
-        task = LaneTask.load_from_checkpoint(str(ckpt), map_location="cpu").eval()
-    except (KeyError, RuntimeError, TypeError) as e:
-        raise ValueError(f"{ckpt}: not a lanes checkpoint ({type(e).__name__}: {str(e)[:120]})") from None
+    task = load_task(ckpt, LaneTask, "lanes")
     spec = DEFAULT_SPEC
     info = training_info(ckpt)
-    run_report = run_dir_of(ckpt) / "report.json"
-    scored = json.loads(run_report.read_text()) if run_report.exists() else {}
-    metrics = {**info.get("metrics", {}), **{k: v for k, v in scored.items() if k.startswith("val_")}, **(metrics or {})}
+    metrics = run_metrics(ckpt, info, metrics)
     # a road model's classes say so: the runtime reads its second head from them (seg_model)
     classes = list(ROAD_CLASSES if task.hparams.get("drivable", False) else CLASSES)
     heads = {"lane_marking": [0, 1]} | ({"drivable": [2, 3]} if len(classes) == 4 else {})

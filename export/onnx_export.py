@@ -42,6 +42,25 @@ def training_info(ckpt: Path) -> dict:
     return {"data": roots, "data_hash": content_hash(roots) if present else "unknown", "metrics": {}}
 
 
+def load_task(ckpt: Path, task_cls, what: str):
+    """The Lightning task of a checkpoint, in eval mode on the CPU; one ValueError line for a
+    missing file or a checkpoint of another task."""
+    if not ckpt.is_file():
+        raise ValueError(f"{ckpt}: checkpoint not found")
+    try:
+        return task_cls.load_from_checkpoint(str(ckpt), map_location="cpu").eval()
+    except (KeyError, RuntimeError, TypeError) as e:
+        raise ValueError(f"{ckpt}: not a {what} checkpoint ({type(e).__name__}: {str(e)[:120]})") from None
+
+
+def run_metrics(ckpt: Path, info: dict, extra: dict | None = None) -> dict:
+    """The metadata's metrics: what the checkpoint stored, the run's report.json val_ scores
+    while the run folder is there, then `extra`."""
+    report = run_dir_of(ckpt) / "report.json"
+    scored = json.loads(report.read_text()) if report.exists() else {}
+    return {**info.get("metrics", {}), **{k: v for k, v in scored.items() if k.startswith("val_")}, **(extra or {})}
+
+
 def present_data(info: dict) -> list[str] | None:
     """The training folders when all of them still exist (for checks on the val split), else None."""
     roots = info.get("data") or []

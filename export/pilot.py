@@ -8,7 +8,7 @@ from pathlib import Path
 
 from signlane.pilot import BRANCHED_CLASSES, PILOTNET_CLASSES, TASK, PilotModel
 from signlane.onnx_model import make_metadata
-from signlane_export.onnx_export import export_onnx, run_dir_of, training_info
+from signlane_export.onnx_export import export_onnx, load_task, run_metrics, training_info
 
 
 def export_pilot(ckpt: str | Path, out: str | Path, tol: float = 1e-4) -> dict:
@@ -18,19 +18,12 @@ def export_pilot(ckpt: str | Path, out: str | Path, tol: float = 1e-4) -> dict:
     from signlane_train.pilot_net import count_parameters
     from signlane_train.pilot_task import PilotTask
     ckpt, out = Path(ckpt), Path(out)
-    if not ckpt.is_file():
-        raise ValueError(f"{ckpt}: checkpoint not found")
-    try:
-        task = PilotTask.load_from_checkpoint(str(ckpt), map_location="cpu").eval()
-    except (KeyError, RuntimeError, TypeError) as e:
-        raise ValueError(f"{ckpt}: not a pilot checkpoint ({type(e).__name__}: {str(e)[:120]})") from None
+    task = load_task(ckpt, PilotTask, "pilot")
     arch = task.hparams.arch
     spec = spec_of(arch)
     classes = list(PILOTNET_CLASSES if arch == "pilotnet" else BRANCHED_CLASSES)
     info = training_info(ckpt)
-    run_report = run_dir_of(ckpt) / "report.json"
-    scored = json.loads(run_report.read_text()) if run_report.exists() else {}
-    metrics = {**info.get("metrics", {}), **{k: v for k, v in scored.items() if k.startswith("val_")}}
+    metrics = run_metrics(ckpt, info)
     name = "PilotNet (S3, NVIDIA)" if arch == "pilotnet" else f"SmallPilot width {task.hparams.width}"
     meta = make_metadata(TASK, classes, spec, info["data_hash"], metrics,
                          {"arch": name, "checkpoint": ckpt.name,

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from signlane_export.onnx_export import export_onnx, present_data, quantize_int8, training_info
+from signlane_export.onnx_export import export_onnx, load_task, present_data, quantize_int8, training_info
 from signlane.onnx_model import make_metadata
 from signlane.signs.classifier import DEFAULT_SPEC, TASK, SignClassifier, preprocess_crops
 from signlane.world.art import SIGN_CLASSES
@@ -21,7 +21,7 @@ def export_signs(ckpt: str | Path, out: str | Path, int8: bool = False, metrics:
     if not ckpt.is_file():
         raise ValueError(f"{ckpt}: checkpoint not found")
     info = training_info(ckpt)  # first: a file that is no checkpoint gets its one line here
-    task = SignTask.load_from_checkpoint(str(ckpt), map_location="cpu").eval()
+    task = load_task(ckpt, SignTask, "sign")
     size = int(task.hparams.size)
     spec = replace(DEFAULT_SPEC, width=size, height=size)
     metrics = {**info.get("metrics", {}), **(metrics or {})}

@@ -16,7 +16,7 @@ import cv2
 import numpy as np
 from tqdm import tqdm
 
-from signlane.pilot import PilotModel, read_outputs
+from signlane.pilot import PilotModel, read_outputs, read_pilot_frames
 
 # |curvature| bins, 1/m: a straight road; a bend (radius 100 m down to 17 m); a turn (VIA's are 6 and 14 m)
 CURVATURE_BINS = ((0.0, 0.01, "straight |k|<0.01"), (0.01, 0.06, "bend 0.01-0.06"), (0.06, 1e9, "turn |k|>=0.06"))
@@ -35,29 +35,9 @@ class Frames:
 
 def read_frames(roots: list[str | Path]) -> Frames:
     """Every frame of every recording under the roots (ValueError naming a root with none)."""
-    from signlane.sim.drive_record import RecordError, read_recording, recording_folders
-    fr = Frames()
-    for root in map(Path, roots):
-        folders = recording_folders(root)
-        if not folders:
-            raise ValueError(f"{root}: no drive recording (drive.jsonl + manifest.json) in or under it")
-        for folder in folders:
-            try:
-                rec = read_recording(folder)
-            except RecordError as e:
-                raise ValueError(str(e)) from None
-            for f in rec.frames:
-                try:
-                    fr.steering.append(float(f["steering"]))
-                except (KeyError, TypeError, ValueError):
-                    raise ValueError(f"{folder}/drive.jsonl: frame {f.get('id')!r} has no steering label") from None
-                fr.paths.append(rec.image_path(f))
-                fr.desire.append(str(f.get("desire", "straight")))
-                fr.curvature.append(float((f.get("lane") or {}).get("curvature", 0.0)))
-                fr.drive.append(folder.name)
-    if not fr.paths:
-        raise ValueError(f"{', '.join(map(str, roots))}: the recordings hold no frames")
-    return fr
+    items = read_pilot_frames(roots)
+    return Frames([f.image for f in items], [f.steering for f in items], [f.desire for f in items],
+                  [f.curvature for f in items], [f.drive for f in items])
 
 
 def predict(model: PilotModel, frames: Frames, desc: str = "") -> np.ndarray:

@@ -126,3 +126,50 @@ class PilotSteering:
             return planner_steering
         self.last = self.model.step(frame_bgr, desire_of(state))
         return self.last.steering
+
+
+SPLIT_BLOCK = 50  # consecutive recorded frames share a side of the train/val split (neighbours look alike)
+
+
+@dataclass(frozen=True)
+class PilotFrame:
+    """One recorded frame as the pilot sees it: the image, the teacher's steering (the label),
+    the planner's desire, the teacher's target speed and lane curvature, and where it is from."""
+    image: Path
+    steering: float  # the teacher's, [-1, 1]
+    desire: str
+    speed: float  # the teacher's target speed, m/s
+    curvature: float  # the teacher's lane estimate, 1/m (for error by curvature bin)
+    drive: str  # the recording folder's name
+    key: str  # for the split: drive folder + block of SPLIT_BLOCK frames
+
+
+def read_pilot_frames(roots: list[str | Path]) -> list[PilotFrame]:
+    """Every frame of every drive recording under the roots (signlane/sim/drive_record.py), in
+    order; ValueError naming a root with none, a broken recording or a frame without a label."""
+    from signlane.sim.drive_record import RecordError, read_recording, recording_folders
+    items: list[PilotFrame] = []
+    for root in map(Path, roots):
+        folders = recording_folders(root)
+        if not folders:
+            raise ValueError(f"{root}: no drive recording (drive.jsonl + manifest.json) in or under it")
+        for folder in folders:
+            try:
+                rec = read_recording(folder)
+            except RecordError as e:
+                raise ValueError(str(e)) from None
+            max_speed = float(rec.manifest.get("config", {}).get("drive", {}).get("max_speed", 13.41))
+            for n, f in enumerate(rec.frames):
+                try:
+                    teacher = f.get("teacher") or f["command"]
+                    desire = f.get("desire", "straight")
+                    items.append(PilotFrame(rec.image_path(f), float(f["steering"]),
+                                            desire if desire in DESIRES else "straight",
+                                            float(teacher["throttle"]) * max_speed,
+                                            float((f.get("lane") or {}).get("curvature", 0.0)),
+                                            folder.name, f"{folder.name}/{n // SPLIT_BLOCK}"))
+                except (KeyError, TypeError, ValueError) as e:
+                    raise ValueError(f"{folder}/drive.jsonl: frame {f.get('id')!r} lacks {e}") from None
+    if not items:
+        raise ValueError(f"{', '.join(map(str, roots))}: the recordings hold no frames")
+    return items

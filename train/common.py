@@ -4,6 +4,7 @@ from __future__ import annotations
 import json
 import logging
 import random
+import time
 import zipfile
 from pathlib import Path
 
@@ -49,6 +50,15 @@ def build_trainer(out: Path, epochs: int, monitor: str, mode: str, patience: int
                         logger=[CSVLogger(out, name="logs"), TensorBoardLogger(out, name="tensorboard")],
                         deterministic="warn" if deterministic else False, **args)
     return trainer, ckpt
+
+
+def fit_best(trainer: L.Trainer, ckpt: ModelCheckpoint, task, datamodule, out: Path,
+             ckpt_path: str | None) -> tuple[str, float]:
+    """Train (resuming from ckpt_path, if any); -> (the best checkpoint, or last.ckpt where
+    none was judged best, and the training seconds)."""
+    t0 = time.perf_counter()
+    trainer.fit(task, datamodule=datamodule, ckpt_path=ckpt_path)
+    return ckpt.best_model_path or str(out / "checkpoints" / "last.ckpt"), time.perf_counter() - t0
 
 
 def seed_worker(worker_id: int) -> None:

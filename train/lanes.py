@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import logging
-import time
 from pathlib import Path
 
 import torch
@@ -15,7 +14,7 @@ from signlane.label_masks import IGNORE
 from signlane.lanes.seg_model import (DEFAULT_SPEC, drivable_probability, marking_probability, preprocess_frames,
                                      to_frame_mask)
 from signlane.splits import VAL_FRACTION
-from signlane_train.common import build_trainer, resume_path, save_run_config
+from signlane_train.common import build_trainer, fit_best, resume_path, save_run_config
 from signlane_train.lane_data import FrameDataset, LaneDataModule, read_drivable, read_pair
 from signlane_train.lane_net import count_parameters
 from signlane_train.lane_task import LaneTask
@@ -58,10 +57,7 @@ def train_lanes(data: list[str | Path], out: str | Path, epochs: int = 15, batch
                           "trainer": trainer_args or {}})
     trainer, ckpt = build_trainer(out, epochs, "val/iou", "max", patience, trainer_args, [info], quiet=quiet,
                                   deterministic=deterministic)
-    t0 = time.perf_counter()
-    trainer.fit(task, datamodule=dm, ckpt_path=ckpt_path)
-    seconds = time.perf_counter() - t0
-    best = ckpt.best_model_path or str(out / "checkpoints" / "last.ckpt")
+    best, seconds = fit_best(trainer, ckpt, task, dm, out, ckpt_path)
     report = evaluate_checkpoint(best, dm.val_items[:eval_frames])
     report.update({"best_checkpoint": best, "train_seconds": round(seconds, 1),
                    "parameters": count_parameters(task.net)})

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import logging
-import time
 from pathlib import Path
 
 import numpy as np
@@ -13,7 +12,7 @@ import torch
 from signlane.fileio import atomic_write_text
 from signlane.pilot import DESIRES, PILOTNET_SPEC, SMALL_SPEC
 from signlane.splits import VAL_FRACTION
-from signlane_train.common import build_trainer, resume_path, save_run_config
+from signlane_train.common import build_trainer, fit_best, resume_path, save_run_config
 from signlane_train.pilot_data import AugmentParams, PilotDataModule, PilotDataset
 from signlane_train.pilot_net import count_parameters
 from signlane_train.pilot_task import PilotTask, pick_steering
@@ -62,10 +61,7 @@ def train_pilot(data: list[str | Path], out: str | Path, arch: str = "small", ep
                           "val_frames": len(dm.val_items), "threads": threads, "trainer": trainer_args or {}})
     trainer, ckpt = build_trainer(out, epochs, "val/mae", "min", patience, trainer_args, [info], quiet=quiet,
                                   deterministic=deterministic)
-    t0 = time.perf_counter()
-    trainer.fit(task, datamodule=dm, ckpt_path=ckpt_path)
-    seconds = time.perf_counter() - t0
-    best = ckpt.best_model_path or str(out / "checkpoints" / "last.ckpt")
+    best, seconds = fit_best(trainer, ckpt, task, dm, out, ckpt_path)
     report = evaluate_checkpoint(best, PilotDataset(dm.val_items, dm.val_frames, spec))
     report.update({"arch": arch, "best_checkpoint": best, "train_seconds": round(seconds, 1),
                    "parameters": count_parameters(task.net), "train_frames": len(dm.train_items)})

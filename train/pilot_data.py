@@ -14,7 +14,6 @@ the cache size, and kept in memory (the input sizes are small).
 """
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,57 +27,15 @@ from torch.utils.data import DataLoader, Dataset
 from tqdm import tqdm
 
 from signlane.onnx_model import InputSpec
-from signlane.pilot import DESIRES, flip_desire, preprocess_frames
+from signlane.pilot import DESIRES, SPLIT_BLOCK, PilotFrame, flip_desire, preprocess_frames, read_pilot_frames
 from signlane.splits import VAL_FRACTION, split_of
 from signlane_train.common import seed_worker
 
 CACHE_SIZE = (160, 120)  # frames are kept at this size (the largest pilot input)
 HFOV_DEG = 75.18  # the camera's horizontal field of view (signlane.config.CameraConfig)
-SPLIT_BLOCK = 50  # consecutive recorded frames share a side of the split (neighbours look alike)
 
 
-@dataclass(frozen=True)
-class PilotItem:
-    image: Path
-    steering: float  # the teacher's, [-1, 1]
-    desire: str
-    speed: float  # the teacher's target speed, m/s
-    curvature: float  # the teacher's lane estimate, 1/m (for error by curvature bin)
-    key: str  # for the split: drive folder + block
-
-
-def read_items(roots: list[str | Path]) -> list[PilotItem]:
-    """Every frame of every recording under the roots; ValueError naming a root with none or a
-    malformed line."""
-    from signlane.sim.drive_record import RecordError, read_recording, recording_folders
-    items: list[PilotItem] = []
-    for root in map(Path, roots):
-        folders = recording_folders(root)
-        if not folders:
-            raise ValueError(f"{root}: no drive recording (drive.jsonl + manifest.json) in or under it")
-        for folder in folders:
-            try:
-                rec = read_recording(folder)
-            except RecordError as e:
-                raise ValueError(str(e)) from None
-            max_speed = float(rec.manifest.get("config", {}).get("drive", {}).get("max_speed", 13.41))
-            for n, f in enumerate(rec.frames):
-                try:
-                    teacher = f.get("teacher") or f["command"]
-                    desire = f.get("desire", "straight")
-                    items.append(PilotItem(rec.image_path(f), float(f["steering"]),
-                                           desire if desire in DESIRES else "straight",
-                                           float(teacher["throttle"]) * max_speed,
-                                           float(f.get("lane", {}).get("curvature", 0.0)),
-                                           f"{folder.name}/{n // SPLIT_BLOCK}"))
-                except (KeyError, TypeError, ValueError) as e:
-                    raise ValueError(f"{folder}/drive.jsonl: frame {f.get('id')!r} lacks {e}") from None
-    if not items:
-        raise ValueError(f"{', '.join(map(str, roots))}: the recordings hold no frames")
-    return items
-
-
-def load_frames(items: list[PilotItem], size: tuple[int, int] = CACHE_SIZE, desc: str = "frames") -> np.ndarray:
+def load_frames(items: list[PilotFrame], size: tuple[int, int] = CACHE_SIZE, desc: str = "frames") -> np.ndarray:
     """uint8 (N, h, w, 3) BGR frames at `size` (w, h), area-resized as the runtime shrinks them."""
     out = np.empty((len(items), size[1], size[0], 3), np.uint8)
     for i, it in enumerate(tqdm(items, desc=desc, unit="frame", leave=False, disable=len(items) < 200)):
@@ -148,7 +105,7 @@ def steering_augment(image: np.ndarray, steering: float, desire: str, rng, p: Au
 class PilotDataset(Dataset):
     """(input float32 (3, h, w), steering, desire index, speed) per frame."""
 
-    def __init__(self, items: list[PilotItem], frames: np.ndarray, spec: InputSpec,
+    def __init__(self, items: list[PilotFrame], frames: np.ndarray, spec: InputSpec,
                  augment: AugmentParams | None = None, seed: int = 0):
         self.items, self.frames, self.spec, self.params = items, frames, spec, augment
         self.augment = photometric(seed) if augment is not None and augment.photometric else None
@@ -177,12 +134,12 @@ class PilotDataModule(L.LightningDataModule):
         self.roots = [Path(r) for r in roots]
         self.spec, self.batch_size, self.val_fraction = spec, batch_size, val_fraction
         self.augment, self.workers, self.seed = augment, workers, seed
-        self.train_items: list[PilotItem] = []
+        self.train_items: list[PilotFrame] = []
 
     def setup(self, stage: str | None = None) -> None:
         if self.train_items:
             return
-        items = read_items(self.roots)
+        items = read_pilot_frames(self.roots)
         train = [i for i, it in enumerate(items) if split_of(it.key, self.val_fraction) == "train"]
         val = [i for i, it in enumerate(items) if split_of(it.key, self.val_fraction) == "val"]
         if not train or not val:

@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import logging
-import time
 from pathlib import Path
 
 import numpy as np
@@ -11,7 +10,7 @@ import torch
 from signlane.sign_report import write_sign_report
 from signlane.splits import VAL_FRACTION
 from signlane.world.art import SIGN_CLASSES
-from signlane_train.common import build_trainer, resume_path, save_run_config
+from signlane_train.common import build_trainer, fit_best, resume_path, save_run_config
 from signlane_train.run_info import RunInfo
 from signlane_train.sign_data import CropDataset, SignDataModule
 from signlane_train.sign_task import SignTask
@@ -58,10 +57,7 @@ def train_signs(data: list[str | Path], out: str | Path, epochs: int = 20, batch
                           "trainer": trainer_args or {}})
     trainer, ckpt = build_trainer(out, epochs, "val/acc", "max", patience, trainer_args, [info], quiet=quiet,
                                   deterministic=deterministic)
-    t0 = time.perf_counter()
-    trainer.fit(task, datamodule=dm, ckpt_path=ckpt_path)
-    seconds = time.perf_counter() - t0
-    best = ckpt.best_model_path or str(out / "checkpoints" / "last.ckpt")
+    best, seconds = fit_best(trainer, ckpt, task, dm, out, ckpt_path)
     report = evaluate_checkpoint(best, dm.val_items, spec, out)
     report.update({"best_checkpoint": best, "train_seconds": round(seconds, 1)})
     return report

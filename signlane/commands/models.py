@@ -22,8 +22,7 @@ def add_train(sub, lightning_flags: bool = True) -> None:
     signs = kinds.add_parser("signs", help="the sign classifier on ImageFolder crops",
                              description="Train the sign classifier (a small CNN) on one or more ImageFolder crop "
                                          "sets; writes confusion.png and errors_<class>.png at the end. " + _CONFIG_HELP)
-    signs.add_argument("data", nargs="*", type=Path, help="crop folders (<class>/<id>.png)")
-    signs.add_argument("--out", type=Path, help="run folder (required, here or in the config file)")
+    _add_data_out(signs, "crop folders (<class>/<id>.png)")
     signs.add_argument("--epochs", type=positive, default=20, help="maximum epochs (default 20)")
     signs.add_argument("--batch-size", type=positive, default=128, help="batch size (default 128)")
     signs.add_argument("--lr", type=float, default=3e-3, help="peak learning rate (default 3e-3)")
@@ -57,8 +56,7 @@ def _add_train_lanes(kinds, lightning_flags: bool) -> None:
                                          "ignore, left out of loss and metrics), binary 0/255 without one. Writes "
                                          "samples/epoch_<k>.png (truth green, prediction red) every epoch. "
                                          + _CONFIG_HELP)
-    lanes.add_argument("data", nargs="*", type=Path, help="lane dataset folders")
-    lanes.add_argument("--out", type=Path, help="run folder (required, here or in the config file)")
+    _add_data_out(lanes, "lane dataset folders")
     lanes.add_argument("--epochs", type=positive, default=15, help="maximum epochs (default 15)")
     lanes.add_argument("--batch-size", type=positive, default=32, help="batch size (default 32)")
     lanes.add_argument("--lr", type=float, default=4e-3, help="peak learning rate (default 4e-3)")
@@ -84,8 +82,7 @@ def _add_train_pilot(kinds, lightning_flags: bool) -> None:
                                          "flipped frame negates steering and swaps left/right desire, a shift adds "
                                          "the steering back to the lane, roll and light leave it. Writes "
                                          "samples/epoch_<k>.png (val steering over time) every epoch. " + _CONFIG_HELP)
-    pilot.add_argument("data", nargs="*", type=Path, help="recording folders")
-    pilot.add_argument("--out", type=Path, help="run folder (required, here or in the config file)")
+    _add_data_out(pilot, "recording folders")
     pilot.add_argument("--arch", choices=["pilotnet", "small"], default="small",
                        help="pilotnet (S3's, the baseline) or small (ours; default)")
     pilot.add_argument("--epochs", type=positive, default=15, help="maximum epochs (default 15)")
@@ -104,6 +101,11 @@ def _add_train_pilot(kinds, lightning_flags: bool) -> None:
     pilot.add_argument("--seed", type=int, default=0, help="training seed (default 0)")
     _add_cpu_args(pilot, workers=0)
     _add_run_args(pilot, lightning_flags)
+
+
+def _add_data_out(p, what: str) -> None:
+    p.add_argument("data", nargs="*", type=Path, help=what)
+    p.add_argument("--out", type=Path, help="run folder (required, here or in the config file)")
 
 
 def _add_run_args(p, lightning_flags: bool) -> None:
