@@ -1,5 +1,11 @@
 """`signlane infer`: the pipeline on images, folders and videos; annotated output and JSON lines.
 
+A video is a drive: its frames go through the closed-loop drive stack that `drive`, `sim` and
+`run` use (lanes, junctions, signs placed by odometry, the behaviour's stops and turns) on the
+video's own clock, the car taken to do what it was told (a recording reports no speed). Images
+have no clock: each goes through the open-loop Pipeline (signlane/pipeline.py), as videos do with
+`open_loop`.
+
 One bad input never stops the batch: it gets one line on stderr and the run's exit code
 becomes 1. JSON records follow the contract in DESIGN.md.
 """
@@ -19,7 +25,8 @@ import numpy as np
 from tqdm import tqdm
 
 from signlane.camera_estimate import CameraChoice, choose_camera
-from signlane.config import Config
+from signlane.config import CameraConfig, Config
+from signlane.drive.stack import DriveStack, ToldCar
 from signlane.draw import contact_sheet, draw_boxes, draw_hud, draw_lane, write_image
 from signlane.fileio import atomic_open_text, atomic_write_text
 from signlane.imagecheck import DEFAULT_MAX_PIXELS
@@ -40,14 +47,16 @@ class Summary:
     frames: int = 0
     lanes_found: int = 0
     signs: Counter = field(default_factory=Counter)
+    states: Counter = field(default_factory=Counter)  # the command's state per frame
     timing: dict[str, list[float]] = field(default_factory=dict)
     failed: list[str] = field(default_factory=list)
     cameras: list[tuple[str, CameraChoice]] = field(default_factory=list)  # (input, its camera)
 
-    def add(self, p: Perception) -> None:
+    def add(self, p: Perception, cmd: Command) -> None:
         self.frames += 1
         self.lanes_found += int(p.lane.found)
         self.signs.update(s.label for s in p.signs)
+        self.states[cmd.state] += 1
         for k, v in p.timing_ms.items():
             self.timing.setdefault(k, []).append(v)
 
@@ -57,6 +66,7 @@ class Summary:
                 ("inputs failed", str(len(self.failed)))]
         rows += self._camera_rows()
         rows += [(f"signs: {k}", str(v)) for k, v in sorted(self.signs.items())]
+        rows += [(f"state: {k}", f"{v} frames") for k, v in self.states.most_common()]
         rows += [(f"ms {k} (median)", f"{np.median(v):.2f}") for k, v in self.timing.items()]
         return pairs(rows)
 
@@ -112,6 +122,38 @@ def annotate(p: Perception, cmd: Command) -> np.ndarray:
     status = f"offset {lane.offset:+.2f} heading {np.degrees(lane.heading):+.1f}" if lane.found else "no lane"
     return draw_hud(out, [f"{lane.method}: {status}",
                           f"steer {cmd.steering:+.2f} throttle {cmd.throttle:.2f} {cmd.state}"])
+
+
+class VideoDrive:
+    """The drive stack on a video's frames at the video's own clock (see the module docstring)."""
+
+    def __init__(self, config: Config):
+        self.stack = DriveStack(config, sync_signs=True)  # signs in step with the frame: repeatable
+        self.car = ToldCar(config.drive.max_speed)
+        self.fps = 30.0
+
+    @property
+    def config(self) -> Config:
+        return self.stack.config
+
+    def start(self, fps: float) -> None:
+        """The next video's frame rate (its clock); _run_source resets the stack for it."""
+        self.fps = fps if fps > 0 else 30.0
+
+    def step(self, frame: Frame) -> tuple[Perception, Command]:
+        p, cmd = self.stack.drive(frame.image_bgr, self.car.speed_mps, self.car.wheel_deg, frame.seq / self.fps)
+        self.car.told(cmd)
+        return p, cmd
+
+    def use_camera(self, camera: CameraConfig) -> None:
+        self.stack.use_camera(camera)
+
+    def reset(self) -> None:
+        self.stack.reset()
+        self.car.reset()
+
+    def close(self) -> None:
+        self.stack.close()
 
 
 class OutputError(ValueError):
@@ -181,10 +223,11 @@ class Writer:
 
 
 def run_infer(paths: list[str], config: Config, out: Path | None = None, json_path: str | None = None,
-              save_masks: bool = False, progress: bool = True, max_pixels: int = DEFAULT_MAX_PIXELS) -> Summary:
+              save_masks: bool = False, progress: bool = True, max_pixels: int = DEFAULT_MAX_PIXELS,
+              open_loop: bool = False) -> Summary:
     """Run the pipeline over every input; returns the summary (summary.failed lists bad inputs).
     The JSON lines file appears under its name once the run ends; OutputError if an output
-    cannot be written."""
+    cannot be written. open_loop: videos frame by frame through the Pipeline too."""
     if save_masks and out is None:
         raise ValueError("--save-masks writes masks beside the annotated images: give --out DIR")
     sources, errors = expand(paths)
@@ -209,11 +252,19 @@ def run_infer(paths: list[str], config: Config, out: Path | None = None, json_pa
         writer = Writer(out, save_masks, stream)
         bar = stack.enter_context(tqdm(total=len(sources), desc="infer", unit="input", file=sys.stderr,
                                        disable=not progress or len(sources) < 2))
-        with Pipeline(config) as pipe:
-            for src in sources:
+        pipe = stack.enter_context(Pipeline(config))
+        video_drive = None  # built for the first video
+        for src in sources:
+            if src.kind == "video" and not open_loop:
+                if video_drive is None:
+                    video_drive = VideoDrive(config)
+                    stack.callback(video_drive.close)
+                video_drive.start(video_info(src.path)[0])
+                ok = _run_source(src, video_drive, writer, summary, progress, max_pixels)
+            else:
                 ok = _run_source(src, pipe, writer, summary, progress, max_pixels)
-                writer.end_source(ok)
-                bar.update(1)
+            writer.end_source(ok)
+            bar.update(1)
     return summary
 
 
@@ -235,7 +286,7 @@ def _raising(error: Exception) -> Iterator[np.ndarray]:
     yield  # a generator: raises where the frames would go on
 
 
-def _run_source(src: Source, pipe: Pipeline, writer: Writer, summary: Summary, progress: bool,
+def _run_source(src: Source, pipe: Pipeline | VideoDrive, writer: Writer, summary: Summary, progress: bool,
                 max_pixels: int) -> bool:
     pipe.reset()
     frames = _frames(src, max_pixels)
@@ -255,7 +306,7 @@ def _run_source(src: Source, pipe: Pipeline, writer: Writer, summary: Summary, p
             frames = itertools.chain(head, _raising(failure) if failure is not None else frames)
         for i, img in enumerate(frames):
             p, cmd = pipe.step(Frame(img, seq=i))
-            summary.add(p)
+            summary.add(p, cmd)
             try:
                 writer.frame(src, i, p, cmd)
             except OSError as e:

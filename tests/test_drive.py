@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from signlane import lanes
+from track_helpers import track_with_stop_sign
 from signlane.behaviour import Behaviour, _junction_path, BehaviourParams
 from signlane.camera import via_camera
 from signlane.config import Config
@@ -436,17 +437,6 @@ def test_a_short_arm_of_a_t_reached_along_its_stem_is_judged_dead_and_the_long_o
     assert True not in verdicts["left"]
 
 
-def _sign_ahead(track: Track, s_m: float, label_id: int) -> dict:
-    """A VIA sign entry 3.4 m right of the ego lane s_m metres along the start route, facing the
-    car: pos in cells from the grid centre (4 m cells), rot counter-clockwise from facing south."""
-    route = Route.drive(track, s_m + 20)
-    pose = route.pose_at(route.start_s + s_m)
-    xy = (np.array([pose.x, pose.y]) + 3.4 * pose.right) / 4.0
-    facing = pose.heading + math.pi
-    return {"sign_id": label_id, "pos": {"x": float(xy[0]), "y": float(xy[1])},
-            "rot": (math.degrees(facing) + 90.0) % 360}
-
-
 @pytest.mark.parametrize("style", ["via", "painted"])
 def test_a_lockstep_drive_completes_a_lap_of_a_small_procedural_track(style):
     sim = Simulator(load_track("random", style, 3, size="small"), SimConfig(width=320, height=240, max_seconds=150))
@@ -457,10 +447,7 @@ def test_a_lockstep_drive_completes_a_lap_of_a_small_procedural_track(style):
 
 
 def test_a_stop_sign_makes_the_car_stop_and_hold():
-    data = generate_map(3, size="small", sign_prob=0.0)
-    track = Track.from_via(data)
-    data["sign_obj_datas"] = [_sign_ahead(track, 30.0, 4)]
-    track = Track.from_via(data)
+    track = track_with_stop_sign(3, 30.0)
     # VIA's car takes about 12 s to reach the stop (half pedal, then coasting: no brakes), holds
     # 2.5 s and needs 3 s more to pass the sign, which is when the stop is judged
     sim = Simulator(track, SimConfig(max_seconds=24))

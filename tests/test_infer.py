@@ -7,7 +7,9 @@ import pytest
 
 from signlane.camera import via_camera
 from signlane.cli import main
-from signlane.world.sampling import FrameSampler, SamplerConfig
+from signlane.video_out import VideoOut
+from signlane.world.sampling import DriveSampler, FrameSampler, SamplerConfig
+from track_helpers import track_with_stop_sign
 
 KEYS = {"source", "frame", "width", "height", "lane", "signs", "control", "timing_ms"}
 LANE_KEYS = {"method", "found", "offset", "heading", "curvature", "confidence", "left", "right"}
@@ -134,3 +136,29 @@ def test_unknown_lane_method_is_one_clear_error(tmp_path, road_frames, capsys):
     cv2.imwrite(str(p), road_frames[0].image)
     code, _, err = _run([p, "--lanes", "magic"], capsys)
     assert code == 2 and "unknown lane method 'magic'" in err
+
+
+def test_a_video_is_driven_by_the_drive_stack_and_slows_for_a_stop_sign(tmp_path, capsys):
+    """A recorded approach to a stop sign: infer plays it through the closed-loop stack (signs
+    placed by odometry, the behaviour's stop), so the commands slow down once the sign is seen;
+    frame by frame (--open-loop) the same video only cruises."""
+    video = tmp_path / "stop.mp4"
+    drive = DriveSampler(0, SamplerConfig(effects="clean", randomise=False, style="via"), track=track_with_stop_sign())
+    with VideoOut(video, 20, (320, 240)) as out:
+        for i in range(70):  # 8 m/s from 5 m to 33 m along the route: the sign stands at 30 m
+            out.write(drive.sample(i).image)
+    runs, summaries = {}, {}
+    for mode in ("drive", "open"):
+        js = tmp_path / f"{mode}.jsonl"
+        code, _, summaries[mode] = _run([video, "--json", js, *(["--open-loop"] if mode == "open" else [])], capsys)
+        assert code == 0, summaries[mode]
+        runs[mode] = [json.loads(line) for line in js.read_text().splitlines()]
+        assert len(runs[mode]) == 70 and all(r["lane"]["found"] for r in runs[mode])
+    assert "state: stopping" in summaries["drive"] and "state: stopping" not in summaries["open"]
+    drive_recs = runs["drive"]
+    seen = min(r["frame"] for r in drive_recs if any(s["label"] == "stop" for s in r["signs"]))
+    slowing = [r for r in drive_recs if r["control"]["state"] in ("approach", "stopping", "stopped")]
+    assert len(slowing) >= 20 and min(r["frame"] for r in slowing) >= seen
+    cruise = np.median([r["control"]["throttle"] for r in drive_recs[:seen]])
+    assert drive_recs[-1]["control"]["throttle"] < 0.6 * cruise  # coasting down to the stop line
+    assert {r["control"]["state"] for r in runs["open"]} == {"cruise"}

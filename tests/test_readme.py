@@ -1,5 +1,5 @@
 """Every command block of the README runs as written, in the order shown, in a fresh working
-folder (slow: `pytest -m slow tests/test_readme.py`, 2-4 minutes on 2 cores).
+folder (part of `make test`: 2-4 minutes on 2 cores).
 
 Sizes are shrunk so the whole README runs in minutes (`--n` at most 40, one epoch, 4 simulated
 seconds a drive, one seed); what each command is and the order they come in are the README's.
@@ -20,7 +20,6 @@ from pathlib import Path
 
 import pytest
 
-pytestmark = pytest.mark.slow
 ROOT = Path(__file__).resolve().parents[1]
 NOT_RUN = ("make test", "pip install", "benchmarks/closed_loop.py")
 

@@ -19,7 +19,11 @@ def add_infer(sub) -> None:
                                    "and height are estimated from its own frames (the vanishing point of the road's "
                                    "lines; a video's first 48 frames) and the summary reports them; the field of view "
                                    "stays camera.hfov_deg. Setting camera.pitch_deg, camera.height_m or "
-                                   "camera.roll_deg (or camera.estimate=off) uses the configured camera instead. A bad "
+                                   "camera.roll_deg (or camera.estimate=off) uses the configured camera instead. A video "
+                                   "is driven as the car would drive it: the closed-loop stack of `drive` and `run` "
+                                   "(junctions, signs placed by odometry, stops and turns in the command's state) on "
+                                   "the video's own clock, the car taken to do what it was told; images, and videos "
+                                   "with --open-loop, get the lane controller's steering frame by frame. A bad "
                                    "input gets one error line; the rest still runs; the exit code is 1 if any input "
                                    "failed.")
     p.add_argument("paths", nargs="+", help="image files, video files or folders")
@@ -32,6 +36,9 @@ def add_infer(sub) -> None:
     p.add_argument("--save-masks", action="store_true", help="write <stem>_lane.png (0/255) beside each annotated image, and <stem>_drivable.png "
                         "(the road surface, 0/255) where the method has a road output (segnet with a road model, "
                         "road-edges, auto on a kerbed road)")
+    p.add_argument("--open-loop", action="store_true",
+                   help="videos frame by frame through the open-loop lane controller, as images are (no "
+                        "odometry, junctions, stops or turns)")
     p.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bars")
     p.add_argument("--max-pixels", type=pixels_arg, default=4096 * 4096, metavar="WxH",
                    help="refuse images and video frames with more pixels than this, read from the file's header "
@@ -46,7 +53,7 @@ def _run_infer(args) -> int:
     cfg = load_config(args)
     try:
         summary = run_infer(args.paths, cfg, out=args.out, json_path=args.json_path, save_masks=args.save_masks,
-                            progress=args.progress, max_pixels=args.max_pixels)
+                            progress=args.progress, max_pixels=args.max_pixels, open_loop=args.open_loop)
     except (ValueError, ModelError) as e:
         raise UserError(str(e)) from None
     print(summary.table(), file=sys.stderr)

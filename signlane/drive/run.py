@@ -4,7 +4,7 @@
                                   \\-> Monitor (the web page, when on)
 
 A camera reports no speed or wheel angle, so the stack is told the car does what it was last
-asked: the target speed of the last throttle and the wheel angle of the last steering. The car
+asked (signlane.drive.stack.ToldCar). The car
 is stopped safely (throttle 0, wheels straight) when no frame arrives for `frame_timeout_s`
 (it drives on when frames come back), and always at the end: end of the video, Ctrl-C, a
 failure. A frame the stack fails on gets the same safe command, and the loop goes on.
@@ -19,8 +19,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from signlane.control import MAX_WHEEL_DEG  # steering 1.0 as a wheel angle, for odometry
 from signlane.drive.signs import SignStageError
+from signlane.drive.stack import ToldCar
 from signlane.types import Command
 
 log = logging.getLogger("signlane.run")
@@ -71,9 +71,8 @@ def run_loop(source, stack, actuator, monitor=None, smoothing: float = 1.0, fram
     and it is closed. Ctrl-C (KeyboardInterrupt) stops the car the same way, then propagates."""
     stop = stop or threading.Event()
     smoother = SteeringSmoother(smoothing)
-    max_speed = stack.config.drive.max_speed if max_speed is None else max_speed
+    car = ToldCar(stack.config.drive.max_speed if max_speed is None else max_speed)
     totals = RunTotals()
-    speed = wheel = 0.0
     quiet = False  # stopped for want of frames
     why = "the loop failed"
     try:
@@ -88,7 +87,7 @@ def run_loop(source, stack, actuator, monitor=None, smoothing: float = 1.0, fram
                     log.warning("no frame from %s for %.1f s: stopping the car until frames come back",
                                 getattr(source, "name", "the source"), frame_timeout_s)
                     actuator.step(safe_stop(f"no frame for {frame_timeout_s:g} s"))
-                    speed = wheel = 0.0
+                    car.reset()
                     smoother.reset()
                     quiet = True
                 continue
@@ -96,7 +95,7 @@ def run_loop(source, stack, actuator, monitor=None, smoothing: float = 1.0, fram
                 log.info("frames again: driving on")
                 quiet = False
             try:
-                perception, cmd = stack.drive(got.image, speed, wheel, got.t)
+                perception, cmd = stack.drive(got.image, car.speed_mps, car.wheel_deg, got.t)
             except SignStageError as e:  # the car must not drive on without the signs it was asked to obey
                 log.warning("%s; stopping the car on this frame", e)
                 perception, cmd = None, safe_stop("sign stage failed")
@@ -112,10 +111,9 @@ def run_loop(source, stack, actuator, monitor=None, smoothing: float = 1.0, fram
             actuator.step(cmd)
             ms = (time.perf_counter() - got.arrived) * 1e3
             totals.step_ms.append(ms)
-            # what a camera cannot measure: the car is taken to do what it was told
-            speed, wheel = cmd.throttle * max_speed, cmd.steering * MAX_WHEEL_DEG
+            car.told(cmd)  # what a camera cannot measure
             if monitor is not None and perception is not None:
-                monitor.publish(perception, cmd, speed, ms, stack.confirmed, getattr(source, "name", ""))
+                monitor.publish(perception, cmd, car.speed_mps, ms, stack.confirmed, getattr(source, "name", ""))
         else:
             why = "stopped"
     except KeyboardInterrupt:

@@ -23,11 +23,28 @@ import time
 import numpy as np
 
 from signlane.behaviour import Behaviour, BehaviourParams
-from signlane.config import Config
+from signlane.config import CameraConfig, Config
+from signlane.control import MAX_WHEEL_DEG  # steering 1.0 as a wheel angle, for odometry
 from signlane.drive.perception import PerceptionStack
 from signlane.drive.signs import sign_positions
 from signlane.odometry import Odometry, OdoPose
 from signlane.types import Command, Frame, Perception, SignDetection
+
+
+class ToldCar:
+    """What a source that reports no speed or wheel angle (a camera, a recorded video) gives the
+    stack for them: the car is taken to do what it was last told, the target speed of the last
+    throttle and the wheel angle of the last steering."""
+
+    def __init__(self, max_speed_mps: float):
+        self.max_speed = max_speed_mps
+        self.speed_mps = self.wheel_deg = 0.0
+
+    def told(self, command: Command) -> None:
+        self.speed_mps, self.wheel_deg = command.throttle * self.max_speed, command.steering * MAX_WHEEL_DEG
+
+    def reset(self) -> None:
+        self.speed_mps = self.wheel_deg = 0.0
 
 
 class DriveStack:
@@ -99,6 +116,10 @@ class DriveStack:
     @property
     def confirmed(self) -> list[SignDetection]:
         return self.perception.confirmed
+
+    def use_camera(self, camera: CameraConfig) -> None:
+        """Read the frames to come with this camera (one measured from the stream's own frames)."""
+        self.perception.use_camera(camera)
 
     def reset(self) -> None:
         self.perception.reset()
