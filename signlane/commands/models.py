@@ -28,15 +28,12 @@ def add_train(sub, lightning_flags: bool = True) -> None:
     signs.add_argument("--lr", type=float, default=3e-3, help="peak learning rate (default 3e-3)")
     signs.add_argument("--size", type=int, choices=[32, 48], default=32, help="input size (default 32)")
     signs.add_argument("--width", type=int, default=16, help="channels of the first stage (default 16)")
-    signs.add_argument("--patience", type=positive, default=6, help="early-stopping patience in epochs (default 6)")
     signs.add_argument("--class-weights", choices=["sqrt", "none"], default="sqrt",
                        help="loss weights: square-root inverse class frequency, or every crop alike (default sqrt)")
     signs.add_argument("--augment", type=float, default=1.0,
                        help="how often each training augmentation is applied, 0..1 (default 1; on generated "
                             "crops 0.5 scored no better)")
-    signs.add_argument("--seed", type=int, default=0, help="training seed (default 0)")
-    _add_cpu_args(signs, workers=1)
-    _add_run_args(signs, lightning_flags)
+    _add_fit_args(signs, patience=6, workers=1, lightning_flags=lightning_flags)
     _add_train_lanes(kinds, lightning_flags)
     _add_train_pilot(kinds, lightning_flags)
     p.set_defaults(func=_run_train)
@@ -63,10 +60,7 @@ def _add_train_lanes(kinds, lightning_flags: bool) -> None:
     lanes.add_argument("--width", type=positive, default=16, help="channels of the stem (default 16)")
     lanes.add_argument("--pos-weight", type=float, default=4.0,
                        help="cross-entropy weight of the marking class (default 4)")
-    lanes.add_argument("--patience", type=positive, default=5, help="early-stopping patience in epochs (default 5)")
-    lanes.add_argument("--seed", type=int, default=0, help="training seed (default 0)")
-    _add_cpu_args(lanes, workers=1)
-    _add_run_args(lanes, lightning_flags)
+    _add_fit_args(lanes, patience=5, workers=1, lightning_flags=lightning_flags)
 
 
 def _add_train_pilot(kinds, lightning_flags: bool) -> None:
@@ -97,15 +91,21 @@ def _add_train_pilot(kinds, lightning_flags: bool) -> None:
     pilot.add_argument("--no-augment", dest="augment", action="store_false", help="train on the frames as recorded")
     pilot.add_argument("--val-fraction", type=float, default=0.1,
                        help="share of 50-frame blocks of each drive held out for validation (default 0.1)")
-    pilot.add_argument("--patience", type=positive, default=5, help="early-stopping patience in epochs (default 5)")
-    pilot.add_argument("--seed", type=int, default=0, help="training seed (default 0)")
-    _add_cpu_args(pilot, workers=0)
-    _add_run_args(pilot, lightning_flags)
+    _add_fit_args(pilot, patience=5, workers=0, lightning_flags=lightning_flags)
 
 
 def _add_data_out(p, what: str) -> None:
     p.add_argument("data", nargs="*", type=Path, help=what)
     p.add_argument("--out", type=Path, help="run folder (required, here or in the config file)")
+
+
+def _add_fit_args(p, patience: int, workers: int, lightning_flags: bool) -> None:
+    """What every training run takes: early stopping, the seed, CPU use and the run folder's options."""
+    p.add_argument("--patience", type=positive, default=patience,
+                   help=f"early-stopping patience in epochs (default {patience})")
+    p.add_argument("--seed", type=int, default=0, help="training seed (default 0)")
+    _add_cpu_args(p, workers=workers)
+    _add_run_args(p, lightning_flags)
 
 
 def _add_run_args(p, lightning_flags: bool) -> None:
