@@ -51,6 +51,10 @@ class BehaviourParams:
     # and a long lookahead cuts them; painted roads bend gently and their far paint is noisier
     lookahead_kerbed: tuple[float, float] = (3.5, 0.3)
     lookahead_painted: tuple[float, float] = (5.0, 0.5)
+    # ... shortened on a painted road's bends so that the car cuts them by at most this much
+    # (metres; its lane is 3.2 m wide). A kerbed carriageway's bends are tight junction-like
+    # corners the short lookahead already holds
+    max_cut_painted_m: float = 0.6
     commit_near_m: float = 12.0  # plan a junction once its side road starts this close ...
     commit_cut_m: float = 14.0  # ... or, where it starts before the view shows its side, once it is in view this close
     instruction_range_m: float = 40.0  # a turn sign applies to a junction within this distance after it
@@ -64,6 +68,7 @@ class BehaviourParams:
     # opening), left to the lane follower. The lane at a junction runs straight up to it
     bend_not_junction: float = 0.04
     handover_offset: float = 0.5  # out of a kerbed turn's arc, the lane takes over when the car is this near its middle (lane widths)
+    handover_offset_painted: float = 0.25  # ... out of a painted one, when the car is at most this far right of the lane's middle
 
 
 @dataclass
@@ -161,6 +166,7 @@ class Behaviour:
                 return steering, stop[0] / self.p.max_speed, stop[1]
             return steering, throttle, state
         self.follow.lookahead, self.follow.per_mps = self.p.lookahead_painted if two_lane else self.p.lookahead_kerbed
+        self.follow.max_cut_m = self.p.max_cut_painted_m if two_lane else None
         if lane.found and lane.path_m is not None and len(lane.path_m) >= 2:
             self._seen_path = pose.to_world(lane.path_m)
         steering = self.follow.step(lane, speed) if lane.found else self._follow_seen(pose, lane, speed)
@@ -176,7 +182,7 @@ class Behaviour:
             ahead = np.flatnonzero(car[:, 1] > 0.5)
             if len(ahead):
                 d = np.hypot(car[ahead, 0], car[ahead, 1])
-                i = ahead[np.argmin(np.abs(d - (self.follow.lookahead + self.follow.per_mps * max(speed, 0.0))))]
+                i = ahead[np.argmin(np.abs(d - self.follow.lookahead_m(speed)))]
                 self.follow.last = self.follow.steer_to(float(car[i, 0]), float(car[i, 1]))
                 return self.follow.last
             self._seen_path = None  # driven past its end
@@ -317,7 +323,9 @@ class Behaviour:
             return False  # still turning out of a bend (or a lane shift): what it sees of the junction is askew
         if len(exits) == 1 and len(side) == 1 and lane.found:
             towards = {"right": 1.0, "left": -1.0}.get(next(iter(exits)), 0.0)
-            bend = path_bend_towards(lane.path_m, self.p.curve_preview_m, towards) or max(0.0, towards * lane.curvature)
+            # (the traced line's bend as the car would steer to it, or the lane's own fitted
+            # curvature: off the lane's middle in an S the first reads the bend short)
+            bend = max(path_bend_towards(lane.path_m, self.p.curve_preview_m, towards), towards * lane.curvature)
             if bend > self.p.bend_not_junction:
                 return False
         y_c = float(np.mean([o.centre_m for o in side]))
@@ -353,13 +361,16 @@ class Behaviour:
         car = pose.to_car(self.path)
         ahead = np.flatnonzero(car[:, 1] > 0.5)
         remaining = np.hypot(*np.diff(self.path[ahead[0]:], axis=0).T).sum() if len(ahead) else 0.0
-        # out of a turn on a kerbed carriageway its edges lead on, once the car is past the arc
-        # and sees itself inside them: the tail laid straight out of the arc runs into whatever
-        # the exit road does next (a lane shift one tile on: its lane then points well askew, so
-        # it is the offset, not the heading, that says the edges are the exit road's). (Painted
-        # lanes are left to the tail: which lane is found first out of a junction is less sure.)
-        out_of_arc = (not self.two_lane and self._arc_end is not None and lane.found
-                      and pose.to_car(self._arc_end[None])[0, 1] < 0.0 and abs(lane.offset) <= self.p.handover_offset)
+        # out of a turn the exit road's own lane leads on, once the car is past the arc and sees
+        # it where it should be: the tail laid straight out of the arc runs into whatever the exit
+        # road does next (a lane shift one tile on: its lane then points well askew, so it is the
+        # offset, not the heading, that says the lane is the exit road's). A kerbed carriageway:
+        # the car inside its edges. A painted road: the lane found is the right one or to the
+        # right of the car (a tail laid from a misjudged side road can put the car on the centre
+        # line, and the lane left of it, found as readily there, is the wrong way's)
+        out_of_arc = (self._arc_end is not None and lane.found and pose.to_car(self._arc_end[None])[0, 1] < 0.0
+                      and (lane.offset <= self.p.handover_offset_painted if self.two_lane
+                           else abs(lane.offset) <= self.p.handover_offset))
         if not len(ahead) or remaining < 5.0 or out_of_arc:
             self.path = None
             self.cooldown_until_m = odo_m + 6.0

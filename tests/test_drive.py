@@ -10,6 +10,7 @@ from track_helpers import track_with_stop_sign
 from signlane.behaviour import Behaviour, _junction_path, BehaviourParams
 from signlane.camera import via_camera
 from signlane.config import Config
+from signlane.control import PurePursuit, path_bend_towards
 from signlane.junction import JunctionDetector, JunctionView, Opening, view_from_scan
 from signlane.odometry import OdoPose, Odometry
 from signlane.sim.driver import Driver
@@ -191,6 +192,18 @@ def test_a_lone_opening_the_lane_bends_toward_is_a_bend_not_a_forced_turn():
     mirrored = LaneEstimate("test", True, curvature=-1 / 13, lane_width_m=3.2,
                             path_m=np.column_stack([-ys ** 2 / 26.0, ys]))
     assert _approach(Behaviour(), mirrored, 10.0) == "junction-right"  # bending away: still the junction
+
+
+def test_a_lone_opening_in_a_bend_is_a_bend_even_off_the_lanes_middle():
+    # Left of the lane's middle in an S (1.0 m on seed 0's painted track), the line traced
+    # ahead in an 18 m right bend reads short of the bend as the car would steer to it: taken
+    # alone, the bend's outer side was planned as a forced right turn and the car left the road.
+    # The lane's own fitted curvature still says bend.
+    ys = np.arange(3.5, 12.0, 0.5)
+    off_middle = np.column_stack([-1.0 + ys ** 2 / 36.0, ys])
+    assert path_bend_towards(off_middle, BehaviourParams().curve_preview_m, 1.0) < BehaviourParams().bend_not_junction
+    lane = LaneEstimate("test", True, curvature=1 / 18, lane_width_m=3.2, path_m=off_middle)
+    assert _approach(Behaviour(), lane, 10.0) != "junction-right"
 
 
 def test_a_bend_beyond_the_end_of_a_lane_shift_is_still_a_bend():
@@ -458,3 +471,46 @@ def test_a_stop_sign_makes_the_car_stop_and_hold():
     assert stopped and max(stopped) - min(stopped) >= 2.0  # a full stop, held 2 s
     assert rep["stops"] == {"required": 1, "complied": 1}
     assert speeds[-1][1] > 1.0  # and then it went on
+
+
+def test_out_of_a_painted_turn_the_lane_takes_over_only_when_it_is_the_right_one():
+    # Out of a painted right turn whose tail left the car on the centre line, the lane finder
+    # latched the lane left of it (the wrong way's) and the car followed it. Past the arc the
+    # lane leads on when it is the car's own or to its right; otherwise the tail does.
+    ys = np.arange(3.5, 12.0, 0.5)
+    lane = LaneEstimate("test", True, lane_width_m=3.2, path_m=np.column_stack([np.zeros_like(ys), ys]))
+
+    def turned(offset, found=True):
+        b = Behaviour()
+        for i in range(3):  # a painted T reached along its stem: right and left open, no way on
+            view = JunctionView(Opening(6.0, 13.0, True, dead=False), Opening(6.0, 13.0, True, dead=False), False,
+                                straight_dead=True)
+            state = b.step(0.1 * i, OdoPose(0.0, 0.0), 0.0, 3.0, lane, view, two_lane=True)[2]
+        assert state == "junction-right"
+        exit_lane = LaneEstimate("test", found, offset=offset, lane_width_m=3.2,
+                                 path_m=lane.path_m if found else None)
+        x, y = b._arc_end + np.array([0.5, 0.0])  # just past the arc, heading east along the exit road
+        return b.step(1.0, OdoPose(float(x), float(y), 0.0), 10.0, 3.0, exit_lane, None, two_lane=True)[2]
+
+    assert turned(-0.45) == "cruise"  # the lane found lies right of the car: the exit road's own
+    assert turned(0.1) == "cruise"
+    assert turned(0.45) == "junction-right"  # left of the car: the oncoming lane; the tail leads on
+    assert turned(0.0, found=False) == "junction-right"
+
+
+def test_pure_pursuit_shortens_its_lookahead_in_a_painted_bend():
+    # The point ld ahead on a bend of radius R lies about ld^2 / 2R to its side: at 4.5 m/s the
+    # painted lookahead (7.25 m) aimed across seed 0's 18 m S-bend and took the car 2 m inside
+    # it, off the road. With max_cut_m the lookahead keeps that aim within it.
+    free = PurePursuit(lookahead_m=5.0, lookahead_per_mps=0.5)
+    capped = PurePursuit(lookahead_m=5.0, lookahead_per_mps=0.5, max_cut_m=0.6)
+    assert free.lookahead_m(4.5, 1 / 18) == pytest.approx(7.25)
+    ld = capped.lookahead_m(4.5, 1 / 18)
+    assert ld == pytest.approx(math.sqrt(2 * 0.6 * 18)) and ld ** 2 / (2 * 18) == pytest.approx(0.6)
+    assert capped.lookahead_m(4.5, 0.0) == pytest.approx(7.25)  # straight: unchanged
+    assert capped.lookahead_m(4.5, -1 / 4) == pytest.approx(3.0)  # never below min_lookahead_m
+    # 3 m short of a right bend the capped car turns in later than the free one
+    r, ys = 18.0, np.arange(0.5, 14.0, 0.25)
+    x = np.where(ys < 3.0, 0.0, r - np.sqrt(r * r - np.clip(ys - 3.0, 0.0, None) ** 2))
+    entry = LaneEstimate("test", True, curvature=1 / r, lane_width_m=3.2, path_m=np.column_stack([x, ys]))
+    assert 0.0 < capped.step(entry, 4.5) < 0.5 * free.step(entry, 4.5)
