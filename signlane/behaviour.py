@@ -51,9 +51,10 @@ class BehaviourParams:
     # and a long lookahead cuts them; painted roads bend gently and their far paint is noisier
     lookahead_kerbed: tuple[float, float] = (3.5, 0.3)
     lookahead_painted: tuple[float, float] = (5.0, 0.5)
-    # ... shortened on a painted road's bends so that the car cuts them by at most this much
-    # (metres; its lane is 3.2 m wide). A kerbed carriageway's bends are tight junction-like
-    # corners the short lookahead already holds
+    # ... shortened on a painted road's bends so that the aim point lies at most this far to the
+    # side of the car's heading (ld^2 / 2R, metres; the lane is 3.2 m wide): aimed far across a
+    # bend, the car ran inside it. A kerbed carriageway's bends are tight junction-like corners
+    # the short lookahead already holds
     max_cut_painted_m: float = 0.6
     commit_near_m: float = 12.0  # plan a junction once its side road starts this close ...
     commit_cut_m: float = 14.0  # ... or, where it starts before the view shows its side, once it is in view this close

@@ -500,8 +500,8 @@ def test_out_of_a_painted_turn_the_lane_takes_over_only_when_it_is_the_right_one
 
 def test_pure_pursuit_shortens_its_lookahead_in_a_painted_bend():
     # The point ld ahead on a bend of radius R lies about ld^2 / 2R to its side: at 4.5 m/s the
-    # painted lookahead (7.25 m) aimed across seed 0's 18 m S-bend and took the car 2 m inside
-    # it, off the road. With max_cut_m the lookahead keeps that aim within it.
+    # painted lookahead (7.25 m) aims 1.5 m across an 18 m bend, and on seed 0's S-bend the car
+    # ran 2 m inside it, off the road. With max_cut_m the lookahead keeps that aim within it.
     free = PurePursuit(lookahead_m=5.0, lookahead_per_mps=0.5)
     capped = PurePursuit(lookahead_m=5.0, lookahead_per_mps=0.5, max_cut_m=0.6)
     assert free.lookahead_m(4.5, 1 / 18) == pytest.approx(7.25)
