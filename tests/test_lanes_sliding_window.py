@@ -130,6 +130,32 @@ def test_ego_pair_prefers_a_lane_width_pair_around_the_car():
     assert pick_ego_pair([6.0], [0.8], 3.2) is None
 
 
+def _line_at(x0: float, bend: float = 0.0):
+    from signlane.lanes.geometry import Boundary
+    from signlane.lanes.sliding_window import _Line
+    return _Line(np.arange(200), 1.0, np.zeros((0, 2)), Boundary(np.array([bend, 0.0, x0]), (0.5, 8.0), 200))
+
+
+def test_a_held_side_is_filled_only_by_a_line_a_lane_width_from_it():
+    from signlane.lanes.sliding_window import _fill_held
+    # a tight right bend (painted seed 306, traced): tracking holds the right edge line at 2.27 m;
+    # the search paired the road's far edge (-4.4 m) with the centre line (-0.28 m), a lane to
+    # the left. Filling the held right edge's partner with the far edge made the checks after
+    # keep the far edge as the ego lane's left (offset +0.61: the car steered for the oncoming lane)
+    held_right = _line_at(2.27, 0.03)
+    left, right, _ = _fill_held((None, held_right), _line_at(-4.4, 0.03), _line_at(-0.28, 0.03), 3.95)
+    assert left is None and right is held_right
+    # the centre line a lane width left of the held right edge fills the left side
+    centre = _line_at(-1.2, 0.03)
+    left, right, _ = _fill_held((None, held_right), centre, None, 3.4)
+    assert left is centre and right is held_right
+    # held left (the centre line): the search's right edge a lane width right of it fills
+    held_left, edge = _line_at(-1.6), _line_at(1.7)
+    assert _fill_held((held_left, None), _line_at(-4.9), edge, 3.2)[:2] == (held_left, edge)
+    # ... but not a line beside the held one
+    assert _fill_held((held_left, None), None, _line_at(-0.9), 3.2)[:2] == (held_left, None)
+
+
 def test_ridge_mask_keeps_stripes_not_shadow_edges():
     img = np.full((40, 120, 3), 100, np.uint8)
     img[:, 60:] = 50  # a shadow border: a step, not paint

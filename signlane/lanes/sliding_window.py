@@ -198,10 +198,7 @@ def _detect(binary_of, cam: Camera, p: SlidingWindowParams, state: SlidingWindow
     else:
         left, right, kind = _window_search(px, valid, bev, p, state.lane_width_m)
         if tracked:  # keep the side tracking held; the search fills the other
-            # a 'wide' search's left line is a two-lane road's far edge, not the ego lane's left
-            # boundary: it stays 'wide' (dropped) unless tracking holds the left side itself
-            kind = "wide" if kind == "wide" and held[0] is None else "pair"
-            left, right = held[0] or left, held[1] or right
+            left, right, kind = _fill_held(held, left, right, state.lane_width_m)
     lb, rb, conf = _boundaries(left, right, kind, p)
     if not want_debug:
         return lb, rb, conf, None, tracked
@@ -211,6 +208,22 @@ def _detect(binary_of, cam: Camera, p: SlidingWindowParams, state: SlidingWindow
             mask[vs[line.idx], us[line.idx]] = 255
     debug = cv2.warpPerspective(mask, bev.bev_to_image_h(), (cam.width, cam.height), flags=cv2.INTER_NEAREST)
     return lb, rb, conf, debug, tracked
+
+
+def _fill_held(held: tuple, left: _Line | None, right: _Line | None, lane_width_m: float):
+    """(left, right, kind) when tracking holds one side: the search's line for the other side
+    fills it only if the two keep a lane's width apart. The search pairs its own lines: in a
+    tight bend, with the held edge line curving out of its windows, it can pick a neighbouring
+    lane (the road's far edge and the centre line) whose right line lies left of the held one;
+    pairing that lane's left line with the held right edge made a whole road of the lane, and
+    the checks after kept the far edge as the ego lane's left (the car steered for the oncoming
+    lane). A two-lane road's far edge ('wide') fails the same test."""
+    keep = held[0] if held[0] is not None else held[1]
+    fill = right if held[0] is not None else left
+    if fill is not None and not parallel(*((keep.fit, fill.fit) if held[0] is not None else (fill.fit, keep.fit)),
+                                         lane_width_m):
+        fill = None
+    return (keep, fill, "pair") if held[0] is not None else (fill, keep, "pair")
 
 
 def _binary(view: np.ndarray, valid: np.ndarray, bev: BirdsEye, p: SlidingWindowParams) -> np.ndarray:
