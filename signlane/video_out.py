@@ -58,7 +58,11 @@ class VideoOut:
         self.frames += 1
 
     def close(self) -> None:
-        """Flush the encoder, finish the file and give it its name."""
+        """Flush the encoder, finish the file and give it its name (ValueError, and no file, when
+        no frame was written: the container is not even created then)."""
+        if self.frames == 0:
+            self.discard()
+            raise ValueError(f"{self.path}: no frames were written, so no video was made")
         try:
             for packet in self._stream.encode():
                 self._box.mux(packet)

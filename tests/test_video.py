@@ -55,6 +55,25 @@ def test_a_failed_video_leaves_nothing_and_odd_sizes_are_trimmed(tmp_path, road)
     assert codec == "h264" and [f.shape for f in frames] == [(238, 318, 3)] * 3
 
 
+def test_a_video_of_no_frames_says_so_and_leaves_nothing(tmp_path):
+    with pytest.raises(ValueError, match="empty.mp4: no frames were written"):
+        VideoOut(tmp_path / "empty.mp4", 10, (320, 240)).close()
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_sim_without_a_server_says_only_that_and_leaves_no_video(tmp_path, capsys):
+    import socket
+    with socket.socket() as s:  # a port nothing listens on
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    out = tmp_path / "sim"
+    assert main(["sim", "--url", f"ws://127.0.0.1:{port}", "--video", "--out", str(out), "--max-seconds", "1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert f"cannot reach the drive server at ws://127.0.0.1:{port}" in err
+    assert "drive.mp4" not in err and not (out / "drive.mp4").exists()
+    assert not out.exists() or not any(p.suffix == ".mp4" for p in out.iterdir())
+
+
 def test_infer_writes_its_annotated_video_as_h264(tmp_path, road, capsys):
     src = tmp_path / "clip.mp4"
     with VideoOut(src, 10, (320, 240)) as video:

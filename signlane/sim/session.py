@@ -163,6 +163,11 @@ def run_session(track: Track, sim_config: SimConfig, out: Path | None, config: C
                 rep["server_latency_ms"] = {k: v for k, v in (srv.totals or {}).items() if "_ms_" in k}
             else:
                 rep = run_client(sim, url, lockstep, progress)
+        except BaseException:
+            if writer is not None:  # a failed run leaves no video (and its error is the run's, not the video's)
+                writer.discard()
+                writer = None
+            raise
         finally:
             bar.close()
             if writer is not None:
