@@ -26,6 +26,8 @@ from __future__ import annotations
 import argparse
 import json
 import multiprocessing as mp
+import signal
+import sys
 import time
 from pathlib import Path
 
@@ -128,6 +130,9 @@ def main() -> None:
     ap.add_argument("--no-teacher", action="store_true", help="with --pilot: skip the teacher's rows")
     ap.add_argument("--out", type=Path, help="per-run report.json and path.png, plus summary.json")
     a = ap.parse_args()
+    # `kill` (SIGTERM) unwinds like Ctrl-C, so the pool's `with` terminates its workers instead of
+    # leaving them driving (and writing to this run's log) after it
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(128 + signal.SIGTERM))
     looks = a.looks or (["random"] if a.random_looks else ["default"])
     drivers = [] if a.no_teacher and a.pilot else [("teacher", ())]
     for spec in a.pilot:
