@@ -23,6 +23,7 @@ import numpy as np
 from signlane.control import PurePursuit, path_bend_towards, path_curvature
 from signlane.junction import JunctionView
 from signlane.odometry import OdoPose
+from signlane.road_heading import RoadHeading
 from signlane.types import LaneEstimate
 
 TURN_SIGNS = {"left", "right", "straight", "no_left", "no_right"}
@@ -97,7 +98,8 @@ class Behaviour:
         self._epoch = 0  # junctions passed
         self.signs: list[SignMemory] = []
         self.path: np.ndarray | None = None  # junction path, odometry frame
-        self._arc_end: np.ndarray | None = None  # where a turn's arc ends on it
+        self.road_heading = RoadHeading()  # the road's direction over the last metres, for laying paths
+        self._arc_end: np.ndarray | None = None  # where a turn's arc (a crossing: its far side) ends on it
         self._seen_path: np.ndarray | None = None  # the lane's centre line last traced, odometry frame
         self.turn = ""
         self.stop_sign: SignMemory | None = None
@@ -156,6 +158,8 @@ class Behaviour:
         # them could only swallow a new sign at the place dead reckoning drifts them to)
         self.signs = [m for m in self.signs if self._ahead(pose, m) > (-2.0 if m.done else -self.p.instruction_range_m)]
         self._remember_dead_ends(junction, odo_m)
+        if self.path is None:
+            self.road_heading.add(odo_m, pose.heading, lane)
         if junction is not None and self._reconsider(pose, odo_m, junction):
             self.path, self.cooldown_until_m = None, -1.0  # plan this junction again, with what is known now
         if self.path is None and junction is not None and odo_m > self.cooldown_until_m:
@@ -348,11 +352,17 @@ class Behaviour:
             return False
         lateral = -lane.offset * (lane.lane_width_m or self.p.lane_width_m) if lane.found else 0.0
         path = _junction_path(self.turn, y_c, lateral, self.p, self.two_lane)
-        if lane.found:  # laid along the road, not along the car (heading > 0: the car points right of it)
-            path = _rotate(path, lane.heading)
+        # laid along the road, not along the car (heading > 0: the car points right of it): the
+        # road's direction over the last metres, else this frame's lane
+        heading = self.road_heading.car_heading(odo_m, pose.heading)
+        heading = heading if heading is not None else (lane.heading if lane.found else None)
+        if heading is not None:
+            path = _rotate(path, heading)
         self.path = pose.to_world(path)
-        # where the turn's arc ends (its straight tail follows): past it, the exit road's own lane
-        self._arc_end = self.path[-len(_TAIL_X) - 1] if self.turn != "straight" else None
+        # where the turn's arc ends (its straight tail follows), or a straight crossing's far side
+        # (where the exit road's paint begins): past it, the exit road's own lane may lead on
+        self._arc_end = self.path[-len(_TAIL_X) - 1] if self.turn != "straight" else \
+            self.path[min(int(far / 0.25), len(self.path) - 1)]
         self._seen_path = None  # traced before the junction: not the way out of it
         self.follow.reset()
         return True
@@ -368,7 +378,9 @@ class Behaviour:
         # offset, not the heading, that says the lane is the exit road's). A kerbed carriageway:
         # the car inside its edges. A painted road: the lane found is the right one or to the
         # right of the car (a tail laid from a misjudged side road can put the car on the centre
-        # line, and the lane left of it, found as readily there, is the wrong way's)
+        # line, and the lane left of it, found as readily there, is the wrong way's). Straight
+        # across a painted crossing likewise, past its far side: a path laid a few degrees askew
+        # would otherwise carry the car on to the path's end, up to 1.8 m off its lane
         out_of_arc = (self._arc_end is not None and lane.found and pose.to_car(self._arc_end[None])[0, 1] < 0.0
                       and (lane.offset <= self.p.handover_offset_painted if self.two_lane
                            else abs(lane.offset) <= self.p.handover_offset))

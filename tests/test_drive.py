@@ -498,6 +498,46 @@ def test_out_of_a_painted_turn_the_lane_takes_over_only_when_it_is_the_right_one
     assert turned(0.0, found=False) == "junction-right"
 
 
+def test_a_straight_crossing_is_laid_along_the_road_remembered_not_the_last_frames_heading():
+    # painted via_town's central crossroads: the lane's heading read at the junction's mouth
+    # (-2.0 deg) was 4-5 degrees off what the approach had shown, and the straight path laid
+    # along it took the car onto the exit road's edge line. The road's direction over the last
+    # metres lays it.
+    b = Behaviour()
+    ys = np.arange(3.5, 12.0, 0.5)
+    path = np.column_stack([np.zeros_like(ys), ys])
+    for i in range(40):  # the approach: the car points 0.04 rad right of the road
+        lane = LaneEstimate("test", True, heading=0.04, confidence=1.0, lane_width_m=3.2, path_m=path)
+        b.step(0.1 * i, OdoPose(0.0, 0.2 * i), 0.2 * i, 3.0, lane, None, two_lane=True)
+    misread = LaneEstimate("test", True, heading=-0.035, confidence=1.0, lane_width_m=3.2, path_m=path)
+    crossing = JunctionView(Opening(6.0, 13.0, True, dead=False), Opening(6.0, 13.0, True, dead=False), True,
+                            straight_dead=False)
+    assert b.step(4.0, OdoPose(0.0, 8.0), 8.0, 3.0, misread, crossing, two_lane=True)[2] == "junction-straight"
+    dx, dy = b.path[-1] - b.path[0]
+    # the road points 0.04 rad left (counter-clockwise) of the car's north
+    assert abs(math.atan2(dy, dx) - (math.pi / 2 + 0.04)) < 0.005
+
+
+def test_past_a_painted_crossings_far_side_the_exit_roads_lane_takes_over_when_it_is_the_right_one():
+    # a straight crossing laid a few degrees askew carried the car on to its path's end, 1.3 m
+    # left of its lane (painted via_town, traced); past the crossing the exit road's lane leads on
+    ys = np.arange(3.5, 12.0, 0.5)
+    lane = LaneEstimate("test", True, confidence=1.0, lane_width_m=3.2,
+                        path_m=np.column_stack([np.zeros_like(ys), ys]))
+
+    def crossed(offset, y):
+        b = Behaviour()
+        crossing = JunctionView(Opening(6.0, 12.0, True, dead=False), Opening(6.0, 12.0, True, dead=False), True,
+                                straight_dead=False)
+        assert b.step(0.0, OdoPose(0.0, 0.0), 0.0, 3.0, lane, crossing, two_lane=True)[2] == "junction-straight"
+        exit_lane = LaneEstimate("test", True, offset=offset, confidence=1.0, lane_width_m=3.2, path_m=lane.path_m)
+        return b.step(1.0, OdoPose(0.0, y), y, 3.0, exit_lane, None, two_lane=True)[2]
+
+    assert crossed(-0.35, 12.5) == "cruise"  # the lane lies right of the car: its own
+    assert crossed(-0.35, 10.0) == "junction-straight"  # still inside the crossing
+    assert crossed(0.45, 12.5) == "junction-straight"  # left of the car: maybe the oncoming lane
+
+
 def test_pure_pursuit_shortens_its_lookahead_in_a_painted_bend():
     # The point ld ahead on a bend of radius R lies about ld^2 / 2R to its side: at 4.5 m/s the
     # painted lookahead (7.25 m) aims 1.5 m across an 18 m bend, and on seed 0's S-bend the car

@@ -1,0 +1,57 @@
+"""The road's direction remembered over the last metres (signlane/road_heading.py)."""
+import math
+
+import numpy as np
+
+from signlane.road_heading import RoadHeading
+from signlane.types import LaneEstimate
+
+
+def _lane(heading: float, confidence: float = 1.0) -> LaneEstimate:
+    return LaneEstimate("test", True, heading=heading, confidence=confidence, lane_width_m=3.2)
+
+
+def test_a_misread_last_frame_does_not_turn_the_road():
+    # the car drives north pointing 0.04 rad right of the road; the last frame (the junction's
+    # mouth) misreads the heading as -0.035, as traced on painted via_town's central crossroads
+    rh = RoadHeading()
+    car = math.pi / 2
+    for i in range(40):
+        rh.add(0.2 * i, car, _lane(0.04 + 0.004 * math.sin(i)))
+    rh.add(8.0, car, _lane(-0.035))
+    assert abs(rh.car_heading(8.0, car) - 0.04) < 0.004
+
+
+def test_in_a_bend_it_is_the_road_about_half_the_window_back_and_wraps_at_the_seam():
+    # a bend of radius 25 m turning left: the road's direction grows 1/25 rad per metre, the car
+    # following it 0.03 rad right of it. The median of the last 3 m is the road 1.5 m back
+    rh = RoadHeading(window_m=3.0)
+    for i in range(41):
+        d = 0.2 * i
+        rh.add(d, math.pi / 2 + d / 25.0 - 0.03, _lane(0.03))
+    car_now = math.pi / 2 + 8.0 / 25.0 - 0.03
+    assert abs(rh.car_heading(8.0, car_now) - (0.03 - 1.5 / 25.0)) < 0.01
+    # straight on across the +-pi seam of the odometry frame
+    rh = RoadHeading()
+    for i in range(41):
+        road = (math.pi - 0.02 + 0.001 * i + math.pi) % (2 * math.pi) - math.pi  # wraps to -pi at i = 20
+        rh.add(0.2 * i, road - 0.02, _lane(0.02))
+    assert abs(rh.car_heading(8.0, -math.pi + 0.02 - 0.02) - (0.02 - 0.0075)) < 0.002
+
+
+def test_too_little_road_says_nothing_and_a_waiting_car_adds_one_sample():
+    rh = RoadHeading()
+    for i in range(5):
+        rh.add(0.2 * i, 0.0, _lane(0.01))
+    assert rh.car_heading(0.8, 0.0) is None  # 5 samples
+    for i in range(200):  # stopped at a stop line: the odometer stands still
+        rh.add(1.0, 0.0, _lane(0.01))
+    assert rh.car_heading(1.0, 0.0) is None  # 6 samples over 1 m
+    for i in range(30):  # unsure frames do not count
+        rh.add(1.2 + 0.2 * i, 0.0, _lane(0.01, confidence=0.5))
+    assert rh.car_heading(7.0, 0.0) is None
+    # samples older than the window are forgotten
+    rh = RoadHeading(window_m=3.0)
+    for i in range(50):
+        rh.add(0.2 * i, 0.0, _lane(0.05 if i < 30 else 0.0))
+    assert abs(rh.car_heading(9.8, 0.0)) < 1e-6
