@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
-from signlane.signs import roi
+from signlane.signs import proposals, roi
 from signlane.signs.eval_proposals import MAX_OCCLUDED, _match, rendered_frames
 from signlane.signs.proposals import ProposalParams, propose
 
@@ -19,12 +19,10 @@ def test_region_hsv_is_the_full_frame_blur_pixel_for_pixel(shape):
     img = np.random.default_rng(0).integers(0, 256, shape + (3,), dtype=np.uint8)
     full = cv2.cvtColor(cv2.GaussianBlur(img, (3, 3), 0), cv2.COLOR_BGR2HSV)
     assert np.array_equal(roi.sparse_blurred_hsv(img, 8, 3), full[::8, ::8])
-    out = np.zeros_like(img)
     for box in [(0, 0, shape[1], shape[0]), (3, 2, min(shape[1], 60), min(shape[0], 40)),
                 (shape[1] // 2, shape[0] // 2, shape[1], shape[0])]:
-        roi.blurred_hsv(img, box, 3, out)
         x0, y0, x1, y1 = box
-        assert np.array_equal(out[y0:y1, x0:x1], full[y0:y1, x0:x1]), box
+        assert np.array_equal(roi.blurred_hsv(img, box, 3), full[y0:y1, x0:x1]), box
 
 
 def test_windows_are_clipped_and_merged():
@@ -67,3 +65,36 @@ def test_region_search_falls_back_to_its_own_half_copy_on_odd_sizes(sign_frames)
     wrong = np.zeros((100, 100, 3), np.uint8)  # not half this frame: ignored
     assert propose(img, ProposalParams(), wrong) == propose(img, ProposalParams())
     assert replace(ProposalParams(), regions=False).regions is False
+
+
+def test_frame_percentiles_are_numpys():
+    # the adaptive thresholds' percentiles come from a histogram; they must be np.percentile's floats
+    rng = np.random.default_rng(1)
+    arrays = [np.array([7], np.uint8), np.full(50, 200, np.uint8), np.array([0, 255], np.uint8)]
+    arrays += [rng.integers(lo, hi, n).astype(np.uint8) for n, lo, hi in [(4800, 0, 256), (1201, 30, 90), (33, 0, 3)]]
+    for values in arrays:
+        for q in (0, 5, 50, 90, 95, 100, 37.3):
+            assert proposals.percentile_u8(values, q) == float(np.percentile(values, q)), (values[:5], q)
+
+
+def test_colour_planes_are_hue_value_chroma_and_saturation_masks(sign_frames):
+    # a level of a colour plane is `hue in range & V >= v_min & chroma >= floor & S >= level`,
+    # the masks' definition, pixel for pixel (on a sign frame: signs, sky, asphalt)
+    img = sign_frames[3][0]
+    params = ProposalParams()
+    hsv = cv2.cvtColor(cv2.GaussianBlur(img, (3, 3), 0), cv2.COLOR_BGR2HSV)
+    specs = proposals._color_specs(params, hsv, (1.0, 1.0))
+    ctx = proposals._make_ctx(640, 480, params, 1.0)
+    win = proposals._window(hsv, (0, 0, 640, 480), specs, ctx)
+    h, s, v = (hsv[:, :, i].astype(int) for i in range(3))
+    chroma_ok = np.rint(s * v / 255.0) >= params.chroma_min
+    for color, hues, s_min, v_min in specs:
+        hue_ok = np.zeros(h.shape, bool)
+        for lo, hi in hues:
+            hue_ok |= (h >= lo) & (h <= hi)
+        for level in (s_min, s_min + 50, 200):
+            want = hue_ok & (v >= v_min) & chroma_ok & (s >= level)
+            got = proposals._level_mask(win.sat[color], level, None) > 0
+            assert np.array_equal(got, want), (color, level)
+            if level == s_min:
+                assert want.sum() >= 100, color  # the frame holds both colours: the test is not vacuous

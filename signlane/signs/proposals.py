@@ -24,6 +24,7 @@ image pixels, origin top-left. OpenCV's 8-bit hue runs 0..180 (degrees / 2).
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import lru_cache
 
 import cv2
 import numpy as np
@@ -108,15 +109,23 @@ def _scales_of(sparse_hsv: np.ndarray, params: ProposalParams) -> tuple[float, f
     if not params.adaptive or sparse_hsv.size == 0:
         return 1.0, 1.0
     sparse = sparse_hsv.reshape(-1, 3)
-    s95, v90 = np.percentile(sparse[:, 1], 95), np.percentile(sparse[:, 2], 90)
+    s95, v90 = percentile_u8(sparse[:, 1], 95), percentile_u8(sparse[:, 2], 90)
     return float(np.clip(s95 / params.washed_s, 0.5, 1.0)), float(np.clip(v90 / 200.0, 0.35, 1.0))
 
 
-def _chroma_mask(hsv: np.ndarray, c_min: float) -> np.ndarray | None:
-    if c_min <= 0:
-        return None
-    chroma = cv2.multiply(hsv[:, :, 1], hsv[:, :, 2], scale=1 / 255.0)
-    return cv2.threshold(chroma, c_min - 1e-3, 255, cv2.THRESH_BINARY)[1]
+def percentile_u8(values: np.ndarray, q: float) -> float:
+    """np.percentile(values, q) (linear method, the same float) of a non-empty uint8 array, from
+    a 256-bin histogram: np.percentile sorts a copy, which cost more than the rest of the frame
+    statistics together."""
+    cum = np.cumsum(np.bincount(values.reshape(-1), minlength=256))
+    n = int(cum[-1])
+    pos = (n - 1) * (q / 100)
+    lo = int(np.floor(pos))
+    t = pos - lo
+    a = int(np.searchsorted(cum, lo, side="right"))  # the lo-th smallest value ...
+    b = int(np.searchsorted(cum, min(lo + 1, n - 1), side="right"))  # ... and the next
+    d = b - a
+    return float(b - d * (1 - t)) if t >= 0.5 else float(a + d * t)  # numpy's own lerp, both halves
 
 
 def _color_specs(params: ProposalParams, hsv: np.ndarray, scales: tuple[float, float] | None = None
@@ -222,17 +231,56 @@ class _Ctx:
     min_size: int
     kernel: np.ndarray | None  # closing kernel, None = no closing
     ring_kernel: np.ndarray | None  # the wider one of the extra red pass
-    hsv: np.ndarray  # the frame, for looking inside ring interiors
     v_scale: float = 1.0  # the frame's V threshold factor (_scales), for the chroma floor
 
 
-def _make_ctx(hsv: np.ndarray, params: ProposalParams, v_scale: float | None = None) -> _Ctx:
-    H, W = hsv.shape[:2]
-    v_scale = _scales(hsv, params)[1] if v_scale is None else v_scale
+def _make_ctx(W: int, H: int, params: ProposalParams, v_scale: float) -> _Ctx:
     min_size = params.min_size
     if params.min_size_frac > 0:  # scale with the frame, but never ask for more than min_size
         min_size = max(4, min(params.min_size, int(round(params.min_size_frac * H))))
-    return _Ctx(params, W, H, min_size, _disc(params.close_px, H), _disc(params.ring_close_px, H), hsv, v_scale)
+    return _Ctx(params, W, H, min_size, _disc(params.close_px, H), _disc(params.ring_close_px, H), v_scale)
+
+
+@dataclass(frozen=True)
+class _Window:
+    """The pixels of one region (x0, y0, x1, y1) of the frame that the search looks at: their
+    HSV (ring interiors are judged there) and, per colour, their saturation where the pixel has
+    the colour's hue, V and chroma, 0 elsewhere, so that a saturation level is one threshold."""
+
+    box: tuple[int, int, int, int]
+    hsv: np.ndarray
+    sat: dict[str, np.ndarray]
+
+    def crop(self, plane: np.ndarray, box: tuple[int, int, int, int]) -> np.ndarray:
+        """`plane`'s pixels inside box (x0, y0, x1, y1), frame pixels, which lies inside the window."""
+        x0, y0 = self.box[:2]
+        return plane[box[1] - y0:box[3] - y0, box[0] - x0:box[2] - x0]
+
+
+def _window(hsv: np.ndarray, box: tuple[int, int, int, int], specs, ctx: _Ctx) -> _Window:
+    """The window of `hsv` (uint8 (h, w, 3), the HSV of region `box`) for the colours of specs."""
+    hue, sat, val = cv2.split(hsv)
+    c_min = ctx.params.chroma_min * ctx.v_scale
+    ok = None
+    if c_min > 0:  # S * V / 255 = max - min of B, G, R: tinted dark asphalt has little
+        chroma = cv2.multiply(sat, val, scale=1 / 255.0)
+        ok = cv2.threshold(chroma, c_min - 1e-3, 255, cv2.THRESH_BINARY)[1]
+    planes = {}
+    for color, hues, _, v_min in specs:
+        m = cv2.bitwise_and(cv2.LUT(hue, _hue_lut(hues)), cv2.threshold(val, v_min - 1, 255, cv2.THRESH_BINARY)[1])
+        if ok is not None:
+            cv2.bitwise_and(m, ok, dst=m)
+        planes[color] = cv2.bitwise_and(sat, m)
+    return _Window(box, hsv, planes)
+
+
+@lru_cache(maxsize=16)
+def _hue_lut(hues: tuple[HueRange, ...]) -> np.ndarray:
+    """255 at the hues inside any of the (lo, hi) ranges (inclusive, as cv2.inRange), else 0."""
+    lut = np.zeros(256, np.uint8)
+    for lo, hi in hues:
+        lut[max(0, lo):max(0, hi + 1)] = 255
+    return lut
 
 
 def _disc(px_at_480: int, H: int) -> np.ndarray | None:
@@ -255,26 +303,25 @@ def _components(mask: np.ndarray, color: str, ctx: _Ctx) -> list[_Blob]:
     return [_Blob(b, color, 1.0) for b in boxes if _size_ok(*b, ctx)]
 
 
-def _level_mask(hue_ok: np.ndarray, sat: np.ndarray, s_min: int, roi: tuple[int, int, int, int],
-                kernel: np.ndarray | None) -> np.ndarray:
-    x0, y0, x1, y1 = roi
-    _, mask = cv2.threshold(sat[y0:y1, x0:x1], s_min - 1, 255, cv2.THRESH_BINARY)
-    mask = cv2.bitwise_and(mask, hue_ok[y0:y1, x0:x1])
+def _level_mask(sat: np.ndarray, s_min: int, kernel: np.ndarray | None) -> np.ndarray:
+    """Pixels of a window's colour plane (crop) at saturation >= s_min; the plane is 0 where the
+    hue is not the colour's, so a level counts from 1 (a grey pixel has no hue)."""
+    _, mask = cv2.threshold(sat, max(s_min, 1) - 1, 255, cv2.THRESH_BINARY)
     return mask if kernel is None else cv2.morphologyEx(mask, cv2.MORPH_CLOSE, kernel)
 
 
-def _search(hue_ok: np.ndarray, sat: np.ndarray, s_min: int, roi: tuple[int, int, int, int], color: str,
-            ctx: _Ctx, depth: int, out: list[_Blob], window: tuple[int, int, int, int] | None = None) -> None:
-    """Outer contours (holes filled) of `hue_ok & sat >= s_min` inside roi (x0, y0, x1, y1).
-    With `window` (a region searched alone, not the frame), a blob touching its inner edges may
-    be cut by it: it is no proposal, but it is searched inside as any other.
+def _search(win: _Window, s_min: int, roi: tuple[int, int, int, int], color: str, ctx: _Ctx, depth: int,
+            out: list[_Blob], window: tuple[int, int, int, int] | None = None) -> None:
+    """Outer contours (holes filled) of the window's `color` pixels at saturation >= s_min inside
+    roi (x0, y0, x1, y1). With `window` (a region searched alone, not the frame), a blob touching
+    its inner edges may be cut by it: it is no proposal, but it is searched inside as any other.
 
     A blob that is not a confident sign is searched again inside its own box one saturation step
     up: a sign glued to a paler background of its colour (sky behind a blue disc, a red wall
     behind a ring) separates from it at some level, while a lone faded sign is found at the first.
     """
     p = ctx.params
-    mask = _level_mask(hue_ok, sat, s_min, roi, ctx.kernel)
+    mask = _level_mask(win.crop(win.sat[color], roi), s_min, ctx.kernel)
     rings = p.ring_holes and color == "red"
     mode = cv2.RETR_CCOMP if rings else cv2.RETR_EXTERNAL
     contours, hier = cv2.findContours(mask, mode, cv2.CHAIN_APPROX_SIMPLE, offset=roi[:2])
@@ -292,9 +339,9 @@ def _search(hue_ok: np.ndarray, sat: np.ndarray, s_min: int, roi: tuple[int, int
             if score >= p.min_score:
                 out.append(_Blob((x, y, w, h), color, score))
         if rings:  # even a confident blob: a ring glued to a wall can make a round-ish whole
-            out += _rings_in_holes(contours, hier[0], i, ctx)
+            out += _rings_in_holes(contours, hier[0], i, ctx, win)
         if score < p.confident and depth < p.max_depth and s_min + p.s_step <= 255:
-            _search(hue_ok, sat, s_min + p.s_step, (x, y, x + w, y + h), color, ctx, depth + 1, out, window)
+            _search(win, s_min + p.s_step, (x, y, x + w, y + h), color, ctx, depth + 1, out, window)
 
 
 def _cut(x: int, y: int, w: int, h: int, window: tuple[int, int, int, int] | None, ctx: _Ctx) -> bool:
@@ -305,13 +352,11 @@ def _cut(x: int, y: int, w: int, h: int, window: tuple[int, int, int, int] | Non
     return (0 < x0 >= x) or (0 < y0 >= y) or (ctx.W > x1 <= x + w) or (ctx.H > y1 <= y + h)
 
 
-def _closed_rings(hue_ok: np.ndarray, sat: np.ndarray, s_min: int, ctx: _Ctx,
-                  roi: tuple[int, int, int, int] | None = None) -> list[_Blob]:
+def _closed_rings(win: _Window, s_min: int, ctx: _Ctx, roi: tuple[int, int, int, int]) -> list[_Blob]:
     """Thin, faded rings break into arcs that no level joins. A wide closing joins them; a blob
     then counts only if it encloses a hole nearly its own size (the ring's interior), so that
     the wide closing does not add merged clutter. Scored a little below the plain search."""
-    roi = roi or (0, 0, ctx.W, ctx.H)
-    mask = _level_mask(hue_ok, sat, s_min, roi, ctx.ring_kernel)
+    mask = _level_mask(win.crop(win.sat["red"], roi), s_min, ctx.ring_kernel)
     contours, hier = cv2.findContours(mask, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_SIMPLE, offset=roi[:2])
     out = []
     for i, c in enumerate(contours):
@@ -327,7 +372,7 @@ def _closed_rings(hue_ok: np.ndarray, sat: np.ndarray, s_min: int, ctx: _Ctx,
     return out
 
 
-def _rings_in_holes(contours, hier: np.ndarray, parent: int, ctx: _Ctx) -> list[_Blob]:
+def _rings_in_holes(contours, hier: np.ndarray, parent: int, ctx: _Ctx, win: _Window) -> list[_Blob]:
     """Ring signs glued to a red background: their pale interior is a hole of the red blob, cut in
     two by the slash. Overlapping holes are joined; a round cluster, pale but holding a dark arrow
     (which tells it from the white text of a stop sign), gives the sign's box: the interior grown
@@ -345,7 +390,7 @@ def _rings_in_holes(contours, hier: np.ndarray, parent: int, ctx: _Ctx) -> list[
         pts = np.concatenate([contours[k] for k in members])
         x, y, w, h = cv2.boundingRect(pts)
         score = 0.9 * _shape_score(cv2.convexHull(pts), w, h)
-        if score < ctx.params.min_score or not _ring_interior(contours, members, (x, y, w, h), ctx.hsv):
+        if score < ctx.params.min_score or not _ring_interior(contours, members, (x, y, w, h), win):
             continue
         gx, gy = int(round(w * RING_GROW)), int(round(h * RING_GROW))
         box = (x - gx, y - gy, w + 2 * gx, h + 2 * gy)
@@ -368,12 +413,12 @@ def _overlapping_groups(holes: list[tuple[int, tuple[int, int, int, int]]]) -> l
     return [m for m, _ in groups]
 
 
-def _ring_interior(contours, members: list[int], box: tuple[int, int, int, int], hsv: np.ndarray) -> bool:
+def _ring_interior(contours, members: list[int], box: tuple[int, int, int, int], win: _Window) -> bool:
     """Are the hole pixels mostly pale (low S) with a darker part (the arrow)?"""
     x, y, w, h = box
     m = np.zeros((h, w), np.uint8)
     cv2.drawContours(m, [contours[k] for k in members], -1, 255, -1, offset=(-x, -y))
-    px = hsv[y:y + h, x:x + w][m > 0]
+    px = win.crop(win.hsv, (x, y, x + w, y + h))[m > 0]
     if len(px) < 8:
         return False
     v5, v50 = np.percentile(px[:, 2], [5, 50])
@@ -436,12 +481,12 @@ def propose(image_bgr: np.ndarray, params: ProposalParams | None = None, half: n
     if params.separate_colors and params.regions:
         blobs = _search_regions(img, params, half if half is not None and half.shape == (H // 2, W // 2, 3) else None)
     elif params.separate_colors:
-        hsv = _hsv(img, params)
-        blobs = _search_frame(hsv, _make_ctx(hsv, params), _color_specs(params, hsv), [(0, 0, W, H)])
+        blobs = _search_frame(_hsv(img, params), params)
     else:  # S1: one union mask, colour decided afterwards
         hsv = _hsv(img, params)
-        ctx = _make_ctx(hsv, params)
-        specs = _color_specs(params, hsv)
+        scales = _scales(hsv, params)
+        ctx = _make_ctx(W, H, params, scales[1])
+        specs = _color_specs(params, hsv, scales)
         blobs = []
         masks = {c: _hue_mask(hsv, hues, s, v) for c, hues, s, v in specs}
         union = cv2.bitwise_or(masks["red"], masks["blue"])
@@ -453,35 +498,27 @@ def propose(image_bgr: np.ndarray, params: ProposalParams | None = None, half: n
     return [SignDetection("unknown", round(b.score, 4), _pad(b.box, params.pad_frac, W, H), b.color) for b in kept]
 
 
-def _search_frame(hsv: np.ndarray, ctx: _Ctx, specs, boxes: list[tuple[int, int, int, int]]) -> list[_Blob]:
-    """The robust search of both colours inside each box (x0, y0, x1, y1) of the HSV frame;
-    pixels outside every box are never looked at (a blob a box cuts is no proposal)."""
-    params = ctx.params
+def _search_frame(hsv: np.ndarray, params: ProposalParams, scales: tuple[float, float] | None = None,
+                  specs=None) -> list[_Blob]:
+    """The robust search of both colours in the whole HSV frame; `scales` and `specs` default
+    to the frame's own (_scales, _color_specs)."""
     H, W = hsv.shape[:2]
-    whole = len(boxes) == 1 and boxes[0] == (0, 0, W, H)
-    sat = np.ascontiguousarray(hsv[:, :, 1]) if whole else np.zeros((H, W), np.uint8)
-    hue_ok = {c: np.zeros((H, W), np.uint8) for c, *_ in specs} if not whole else {}
-    c_min = params.chroma_min * ctx.v_scale
-    for x0, y0, x1, y1 in boxes:
-        part = hsv[y0:y1, x0:x1]
-        if not whole:
-            sat[y0:y1, x0:x1] = part[:, :, 1]
-        chroma_ok = _chroma_mask(part, c_min)
-        for color, hues, _, v_min in specs:
-            ok = _hue_mask(part, hues, 0, v_min)
-            if chroma_ok is not None:
-                ok = cv2.bitwise_and(ok, chroma_ok)
-            if whole:
-                hue_ok[color] = ok
-            else:
-                hue_ok[color][y0:y1, x0:x1] = ok
+    scales = scales or _scales(hsv, params)
+    specs = specs or _color_specs(params, hsv, scales)
+    ctx = _make_ctx(W, H, params, scales[1])
+    return _search_windows([_window(hsv, (0, 0, W, H), specs, ctx)], ctx, specs, whole=True)
+
+
+def _search_windows(wins: list[_Window], ctx: _Ctx, specs, whole: bool) -> list[_Blob]:
+    """The robust search of both colours inside each window; pixels outside every window are
+    never looked at (a blob a window cuts is no proposal, unless the window is the `whole` frame)."""
     blobs: list[_Blob] = []
     for color, _, s_min, _ in specs:  # in the full-frame order: red, red rings, blue
-        for box in boxes:
-            _search(hue_ok[color], sat, s_min, box, color, ctx, 0, blobs, None if whole else box)
+        for win in wins:
+            _search(win, s_min, win.box, color, ctx, 0, blobs, None if whole else win.box)
         if color == "red" and ctx.ring_kernel is not None:
-            for box in boxes:
-                blobs += _closed_rings(hue_ok[color], sat, s_min, ctx, box)
+            for win in wins:
+                blobs += _closed_rings(win, s_min, ctx, win.box)
     return blobs
 
 
@@ -502,14 +539,11 @@ def _search_regions(img: np.ndarray, params: ProposalParams, small: np.ndarray |
                     min_size_frac=COARSE_SIZE * params.min_size_frac)
     # and paler ones: averaging 2x2 pixels halves a thin ring's saturation against a white face
     pale = [(c, hues, int(COARSE_S * s_min), v_min) for c, hues, s_min, v_min in specs]
-    coarse = _search_frame(small_hsv, _make_ctx(small_hsv, loose, scales[1]), pale,
-                           [(0, 0, small.shape[1], small.shape[0])])
+    coarse = _search_frame(small_hsv, loose, scales, pale)
     if not coarse:
         return []
-    hsv = np.zeros((H, W, 3), np.uint8)
-    ctx = _make_ctx(hsv, params, scales[1])
+    ctx = _make_ctx(W, H, params, scales[1])
     scale = (W / small.shape[1], H / small.shape[0])
-    windows = sign_roi.windows([b.box for b in coarse], scale, (W, H), ctx.min_size)
-    for box in windows:
-        sign_roi.blurred_hsv(img, box, params.blur_px, hsv)
-    return _search_frame(hsv, ctx, specs, windows)
+    boxes = sign_roi.windows([b.box for b in coarse], scale, (W, H), ctx.min_size)
+    wins = [_window(sign_roi.blurred_hsv(img, box, params.blur_px), box, specs, ctx) for box in boxes]
+    return _search_windows(wins, ctx, specs, whole=False)
