@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
-from signlane.signs import proposals, roi
+from signlane.signs import planes, proposals, roi
 from signlane.signs.eval_proposals import MAX_OCCLUDED, _match, rendered_frames
 from signlane.signs.proposals import ProposalParams, propose
 
@@ -74,7 +74,7 @@ def test_frame_percentiles_are_numpys():
     arrays += [rng.integers(lo, hi, n).astype(np.uint8) for n, lo, hi in [(4800, 0, 256), (1201, 30, 90), (33, 0, 3)]]
     for values in arrays:
         for q in (0, 5, 50, 90, 95, 100, 37.3):
-            assert proposals.percentile_u8(values, q) == float(np.percentile(values, q)), (values[:5], q)
+            assert planes.percentile_u8(values, q) == float(np.percentile(values, q)), (values[:5], q)
 
 
 def test_colour_planes_are_hue_value_chroma_and_saturation_masks(sign_frames):
@@ -84,8 +84,7 @@ def test_colour_planes_are_hue_value_chroma_and_saturation_masks(sign_frames):
     params = ProposalParams()
     hsv = cv2.cvtColor(cv2.GaussianBlur(img, (3, 3), 0), cv2.COLOR_BGR2HSV)
     specs = proposals._color_specs(params, hsv, (1.0, 1.0))
-    ctx = proposals._make_ctx(640, 480, params, 1.0)
-    win = proposals._window(hsv, (0, 0, 640, 480), specs, ctx)
+    win = planes.window(hsv, (0, 0, 640, 480), specs, params.chroma_min)
     h, s, v = (hsv[:, :, i].astype(int) for i in range(3))
     chroma_ok = np.rint(s * v / 255.0) >= params.chroma_min
     for color, hues, s_min, v_min in specs:
@@ -94,7 +93,28 @@ def test_colour_planes_are_hue_value_chroma_and_saturation_masks(sign_frames):
             hue_ok |= (h >= lo) & (h <= hi)
         for level in (s_min, s_min + 50, 200):
             want = hue_ok & (v >= v_min) & chroma_ok & (s >= level)
-            got = proposals._level_mask(win.sat[color], level, None) > 0
+            got = planes.level_mask(win.sat[color], level, None) > 0
             assert np.array_equal(got, want), (color, level)
             if level == s_min:
                 assert want.sum() >= 100, color  # the frame holds both colours: the test is not vacuous
+
+
+def test_each_colour_is_searched_around_its_own_coarse_blobs():
+    # a no_left ring and a blue disc side by side: their windows overlap, but each colour's
+    # full-resolution search runs in its own colour's windows; both signs keep their boxes
+    from signlane.world.art import draw_sign
+
+    img = np.full((240, 320, 3), (92, 94, 98), np.uint8)
+    truth = {}
+    for name, x in (("no_left", 100), ("left", 142)):
+        sprite = draw_sign(name, 40, None, np.random.default_rng(0))
+        a = sprite[..., 3:4].astype(np.float32) / 255.0
+        part = img[80:120, x:x + 40].astype(np.float32)
+        img[80:120, x:x + 40] = (a * sprite[..., :3] + (1 - a) * part + 0.5).astype(np.uint8)
+        ys, xs = np.nonzero(sprite[..., 3] > 127)
+        truth[name] = (x + int(xs.min()), 80 + int(ys.min()), int(np.ptp(xs)) + 1, int(np.ptp(ys)) + 1)
+    fast, full = propose(img, ProposalParams()), propose(img, ProposalParams(regions=False))
+    assert fast == full
+    for name, color in (("no_left", "red"), ("left", "blue")):
+        hits = [p for p in fast if proposals.box_iou(p.box, truth[name]) >= 0.7]
+        assert [p.color for p in hits] == [color], (name, fast)

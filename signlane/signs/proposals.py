@@ -15,8 +15,9 @@ Two variants share one code path, chosen by :class:`ProposalParams`:
   frame, blobs are scored by shape (signs are discs and octagons; a blob cut by the frame edge by
   a circle fit), and non-maximum suppression and a per-frame cap finish the list. It runs coarse
   to fine (``regions``): the same search on a half-size copy, with looser size, shape and
-  saturation floors, says where signs may be, and the full-resolution search runs in windows
-  around those places only (``signs/roi.py``); a sign both find has the same box.
+  saturation floors, says where signs of each colour may be, and each colour's full-resolution
+  search runs in windows around its own places only (``signs/roi.py``); a sign both find has the
+  same box.
 
 All images are ``uint8`` ``(H, W, 3)`` **BGR** (OpenCV order); boxes are ``(x, y, w, h)`` int
 image pixels, origin top-left. OpenCV's 8-bit hue runs 0..180 (degrees / 2).
@@ -24,11 +25,11 @@ image pixels, origin top-left. OpenCV's 8-bit hue runs 0..180 (degrees / 2).
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from functools import lru_cache
 
 import cv2
 import numpy as np
 
+from signlane.signs import planes
 from signlane.signs import roi as sign_roi
 from signlane.types import SignDetection
 
@@ -109,23 +110,8 @@ def _scales_of(sparse_hsv: np.ndarray, params: ProposalParams) -> tuple[float, f
     if not params.adaptive or sparse_hsv.size == 0:
         return 1.0, 1.0
     sparse = sparse_hsv.reshape(-1, 3)
-    s95, v90 = percentile_u8(sparse[:, 1], 95), percentile_u8(sparse[:, 2], 90)
+    s95, v90 = planes.percentile_u8(sparse[:, 1], 95), planes.percentile_u8(sparse[:, 2], 90)
     return float(np.clip(s95 / params.washed_s, 0.5, 1.0)), float(np.clip(v90 / 200.0, 0.35, 1.0))
-
-
-def percentile_u8(values: np.ndarray, q: float) -> float:
-    """np.percentile(values, q) (linear method, the same float) of a non-empty uint8 array, from
-    a 256-bin histogram: np.percentile sorts a copy, which cost more than the rest of the frame
-    statistics together."""
-    cum = np.cumsum(np.bincount(values.reshape(-1), minlength=256))
-    n = int(cum[-1])
-    pos = (n - 1) * (q / 100)
-    lo = int(np.floor(pos))
-    t = pos - lo
-    a = int(np.searchsorted(cum, lo, side="right"))  # the lo-th smallest value ...
-    b = int(np.searchsorted(cum, min(lo + 1, n - 1), side="right"))  # ... and the next
-    d = b - a
-    return float(b - d * (1 - t)) if t >= 0.5 else float(a + d * t)  # numpy's own lerp, both halves
 
 
 def _color_specs(params: ProposalParams, hsv: np.ndarray, scales: tuple[float, float] | None = None
@@ -241,46 +227,9 @@ def _make_ctx(W: int, H: int, params: ProposalParams, v_scale: float) -> _Ctx:
     return _Ctx(params, W, H, min_size, _disc(params.close_px, H), _disc(params.ring_close_px, H), v_scale)
 
 
-@dataclass(frozen=True)
-class _Window:
-    """The pixels of one region (x0, y0, x1, y1) of the frame that the search looks at: their
-    HSV (ring interiors are judged there) and, per colour, their saturation where the pixel has
-    the colour's hue, V and chroma, 0 elsewhere, so that a saturation level is one threshold."""
-
-    box: tuple[int, int, int, int]
-    hsv: np.ndarray
-    sat: dict[str, np.ndarray]
-
-    def crop(self, plane: np.ndarray, box: tuple[int, int, int, int]) -> np.ndarray:
-        """`plane`'s pixels inside box (x0, y0, x1, y1), frame pixels, which lies inside the window."""
-        x0, y0 = self.box[:2]
-        return plane[box[1] - y0:box[3] - y0, box[0] - x0:box[2] - x0]
-
-
-def _window(hsv: np.ndarray, box: tuple[int, int, int, int], specs, ctx: _Ctx) -> _Window:
-    """The window of `hsv` (uint8 (h, w, 3), the HSV of region `box`) for the colours of specs."""
-    hue, sat, val = cv2.split(hsv)
-    c_min = ctx.params.chroma_min * ctx.v_scale
-    ok = None
-    if c_min > 0:  # S * V / 255 = max - min of B, G, R: tinted dark asphalt has little
-        chroma = cv2.multiply(sat, val, scale=1 / 255.0)
-        ok = cv2.threshold(chroma, c_min - 1e-3, 255, cv2.THRESH_BINARY)[1]
-    planes = {}
-    for color, hues, _, v_min in specs:
-        m = cv2.bitwise_and(cv2.LUT(hue, _hue_lut(hues)), cv2.threshold(val, v_min - 1, 255, cv2.THRESH_BINARY)[1])
-        if ok is not None:
-            cv2.bitwise_and(m, ok, dst=m)
-        planes[color] = cv2.bitwise_and(sat, m)
-    return _Window(box, hsv, planes)
-
-
-@lru_cache(maxsize=16)
-def _hue_lut(hues: tuple[HueRange, ...]) -> np.ndarray:
-    """255 at the hues inside any of the (lo, hi) ranges (inclusive, as cv2.inRange), else 0."""
-    lut = np.zeros(256, np.uint8)
-    for lo, hi in hues:
-        lut[max(0, lo):max(0, hi + 1)] = 255
-    return lut
+def _chroma_floor(ctx: _Ctx) -> float:
+    """S * V / 255 (= max - min of B, G, R) a pixel needs: tinted dark asphalt has little."""
+    return ctx.params.chroma_min * ctx.v_scale
 
 
 def _disc(px_at_480: int, H: int) -> np.ndarray | None:
@@ -303,14 +252,7 @@ def _components(mask: np.ndarray, color: str, ctx: _Ctx) -> list[_Blob]:
     return [_Blob(b, color, 1.0) for b in boxes if _size_ok(*b, ctx)]
 
 
-def _level_mask(sat: np.ndarray, s_min: int, kernel: np.ndarray | None) -> np.ndarray:
-    """Pixels of a window's colour plane (crop) at saturation >= s_min; the plane is 0 where the
-    hue is not the colour's, so a level counts from 1 (a grey pixel has no hue)."""
-    _, mask = cv2.threshold(sat, max(s_min, 1) - 1, 255, cv2.THRESH_BINARY)
-    return mask if kernel is None else cv2.morphologyEx(mask, cv2.MORPH_CLOSE, kernel)
-
-
-def _search(win: _Window, s_min: int, roi: tuple[int, int, int, int], color: str, ctx: _Ctx, depth: int,
+def _search(win: planes.Window, s_min: int, roi: tuple[int, int, int, int], color: str, ctx: _Ctx, depth: int,
             out: list[_Blob], window: tuple[int, int, int, int] | None = None) -> None:
     """Outer contours (holes filled) of the window's `color` pixels at saturation >= s_min inside
     roi (x0, y0, x1, y1). With `window` (a region searched alone, not the frame), a blob touching
@@ -321,7 +263,7 @@ def _search(win: _Window, s_min: int, roi: tuple[int, int, int, int], color: str
     behind a ring) separates from it at some level, while a lone faded sign is found at the first.
     """
     p = ctx.params
-    mask = _level_mask(win.crop(win.sat[color], roi), s_min, ctx.kernel)
+    mask = planes.level_mask(win.crop(win.sat[color], roi), s_min, ctx.kernel)
     rings = p.ring_holes and color == "red"
     mode = cv2.RETR_CCOMP if rings else cv2.RETR_EXTERNAL
     contours, hier = cv2.findContours(mask, mode, cv2.CHAIN_APPROX_SIMPLE, offset=roi[:2])
@@ -352,11 +294,11 @@ def _cut(x: int, y: int, w: int, h: int, window: tuple[int, int, int, int] | Non
     return (0 < x0 >= x) or (0 < y0 >= y) or (ctx.W > x1 <= x + w) or (ctx.H > y1 <= y + h)
 
 
-def _closed_rings(win: _Window, s_min: int, ctx: _Ctx, roi: tuple[int, int, int, int]) -> list[_Blob]:
+def _closed_rings(win: planes.Window, s_min: int, ctx: _Ctx, roi: tuple[int, int, int, int]) -> list[_Blob]:
     """Thin, faded rings break into arcs that no level joins. A wide closing joins them; a blob
     then counts only if it encloses a hole nearly its own size (the ring's interior), so that
     the wide closing does not add merged clutter. Scored a little below the plain search."""
-    mask = _level_mask(win.crop(win.sat["red"], roi), s_min, ctx.ring_kernel)
+    mask = planes.level_mask(win.crop(win.sat["red"], roi), s_min, ctx.ring_kernel)
     contours, hier = cv2.findContours(mask, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_SIMPLE, offset=roi[:2])
     out = []
     for i, c in enumerate(contours):
@@ -372,7 +314,7 @@ def _closed_rings(win: _Window, s_min: int, ctx: _Ctx, roi: tuple[int, int, int,
     return out
 
 
-def _rings_in_holes(contours, hier: np.ndarray, parent: int, ctx: _Ctx, win: _Window) -> list[_Blob]:
+def _rings_in_holes(contours, hier: np.ndarray, parent: int, ctx: _Ctx, win: planes.Window) -> list[_Blob]:
     """Ring signs glued to a red background: their pale interior is a hole of the red blob, cut in
     two by the slash. Overlapping holes are joined; a round cluster, pale but holding a dark arrow
     (which tells it from the white text of a stop sign), gives the sign's box: the interior grown
@@ -413,7 +355,7 @@ def _overlapping_groups(holes: list[tuple[int, tuple[int, int, int, int]]]) -> l
     return [m for m, _ in groups]
 
 
-def _ring_interior(contours, members: list[int], box: tuple[int, int, int, int], win: _Window) -> bool:
+def _ring_interior(contours, members: list[int], box: tuple[int, int, int, int], win: planes.Window) -> bool:
     """Are the hole pixels mostly pale (low S) with a darker part (the arrow)?"""
     x, y, w, h = box
     m = np.zeros((h, w), np.uint8)
@@ -506,10 +448,10 @@ def _search_frame(hsv: np.ndarray, params: ProposalParams, scales: tuple[float, 
     scales = scales or _scales(hsv, params)
     specs = specs or _color_specs(params, hsv, scales)
     ctx = _make_ctx(W, H, params, scales[1])
-    return _search_windows([_window(hsv, (0, 0, W, H), specs, ctx)], ctx, specs, whole=True)
+    return _search_windows([planes.window(hsv, (0, 0, W, H), specs, _chroma_floor(ctx))], ctx, specs, whole=True)
 
 
-def _search_windows(wins: list[_Window], ctx: _Ctx, specs, whole: bool) -> list[_Blob]:
+def _search_windows(wins: list[planes.Window], ctx: _Ctx, specs, whole: bool) -> list[_Blob]:
     """The robust search of both colours inside each window; pixels outside every window are
     never looked at (a blob a window cuts is no proposal, unless the window is the `whole` frame)."""
     blobs: list[_Blob] = []
@@ -526,7 +468,10 @@ def _search_regions(img: np.ndarray, params: ProposalParams, small: np.ndarray |
     """Coarse to fine: the robust search on a half-size copy (area-averaged, which also does the
     blur's work) finds where signs may be; the full-resolution search then runs in a window
     around each (signs/roi.py makes blurred HSV for the windows only) and gives the boxes. The
-    frame's thresholds come from a sparse sample of the full-resolution frame, for both."""
+    frame's thresholds come from a sparse sample of the full-resolution frame, for both.
+    A colour is searched at full resolution only around its own coarse blobs: a blue window
+    (often sky or a wall around a blue candidate) searched for red too cost time and found
+    mostly clutter (a red sign there has its own coarse blob and window)."""
     H, W = img.shape[:2]
     scales = _scales_of(sign_roi.sparse_blurred_hsv(img, SPARSE, params.blur_px), params)
     specs = _color_specs(params, img, scales)
@@ -544,6 +489,10 @@ def _search_regions(img: np.ndarray, params: ProposalParams, small: np.ndarray |
         return []
     ctx = _make_ctx(W, H, params, scales[1])
     scale = (W / small.shape[1], H / small.shape[0])
-    boxes = sign_roi.windows([b.box for b in coarse], scale, (W, H), ctx.min_size)
-    wins = [_window(sign_roi.blurred_hsv(img, box, params.blur_px), box, specs, ctx) for box in boxes]
-    return _search_windows(wins, ctx, specs, whole=False)
+    blobs: list[_Blob] = []
+    for spec in specs:  # each colour only around what the half-size search found of that colour
+        boxes = sign_roi.windows([b.box for b in coarse if b.color == spec[0]], scale, (W, H), ctx.min_size)
+        wins = [planes.window(sign_roi.blurred_hsv(img, box, params.blur_px), box, [spec], _chroma_floor(ctx))
+                for box in boxes]
+        blobs += _search_windows(wins, ctx, [spec], whole=False)
+    return blobs
