@@ -38,7 +38,7 @@ ColorSpec = tuple[str, tuple[HueRange, ...], int, int]  # colour, hue ranges, fi
 COARSE_MIN_SCORE = 0.5  # of min_score, for the half-size pass of the region search ...
 COARSE_SIZE = 0.75  # ... of min_size_frac ...
 COARSE_S = 0.6  # ... and of the first saturation level
-SPARSE = 8  # the frame-level percentiles look at every 8th row and column
+SPARSE = 4  # the frame-level percentiles look at every 4th row and column of the half-size copy
 RING_GROW = 0.09  # a ring's width / its outer diameter, typical: the interior grows by this per side
 
 
@@ -96,28 +96,31 @@ def _hue_mask(hsv: np.ndarray, hues: tuple[HueRange, ...], s_min: int, v_min: in
     return mask
 
 
-def _scales(hsv: np.ndarray, params: ProposalParams) -> tuple[float, float]:
+def _scales(img: np.ndarray, params: ProposalParams, small_hsv: np.ndarray | None = None) -> tuple[float, float]:
     """(S, V) threshold factors <= 1 from sparse percentiles of the frame: a dark frame lowers
     V minimums, a washed-out one (over-exposure, glare, haze: little saturation anywhere) lowers
-    the first S level. Percentiles, so that one bright sky or one vivid wall does not decide."""
-    if not params.adaptive or hsv.size == 0:
+    the first S level. Percentiles, so that one bright sky or one vivid wall does not decide.
+    They are read off the half-size copy's HSV (`small_hsv`, made from img when not given),
+    which the region search has anyway: its 2x2 averages smooth noise as the full frame's blur
+    does, and every search variant then adapts to the same numbers."""
+    if not params.adaptive or img.size == 0:
         return 1.0, 1.0
-    return _scales_of(hsv[::SPARSE, ::SPARSE], params)
-
-
-def _scales_of(sparse_hsv: np.ndarray, params: ProposalParams) -> tuple[float, float]:
-    """_scales from the HSV pixels at every SPARSE-th row and column."""
-    if not params.adaptive or sparse_hsv.size == 0:
-        return 1.0, 1.0
-    sparse = sparse_hsv.reshape(-1, 3)
+    if small_hsv is None:
+        small_hsv = cv2.cvtColor(_half(img), cv2.COLOR_BGR2HSV)
+    sparse = small_hsv[::SPARSE, ::SPARSE].reshape(-1, 3)
     s95, v90 = planes.percentile_u8(sparse[:, 1], 95), planes.percentile_u8(sparse[:, 2], 90)
     return float(np.clip(s95 / params.washed_s, 0.5, 1.0)), float(np.clip(v90 / 200.0, 0.35, 1.0))
 
 
-def _color_specs(params: ProposalParams, hsv: np.ndarray, scales: tuple[float, float] | None = None
-                 ) -> tuple[ColorSpec, ColorSpec]:
-    """Red's and blue's thresholds, adapted to the frame (by `scales`, else from hsv)."""
-    ks, kv = scales or _scales(hsv, params)
+def _half(img: np.ndarray) -> np.ndarray:
+    """The frame at (W // 2, H // 2) (at least 1 px), area-averaged: the region search's copy."""
+    H, W = img.shape[:2]
+    return cv2.resize(img, (max(1, W // 2), max(1, H // 2)), interpolation=cv2.INTER_AREA)
+
+
+def _color_specs(params: ProposalParams, scales: tuple[float, float]) -> tuple[ColorSpec, ColorSpec]:
+    """Red's and blue's thresholds, adapted to the frame by its `scales` (_scales)."""
+    ks, kv = scales
     return (("red", params.red_hue, int(params.red_s_min * ks), int(params.red_v_min * kv)),
             ("blue", params.blue_hue, int(params.blue_s_min * ks), int(params.blue_v_min * kv)))
 
@@ -130,7 +133,7 @@ def color_masks(image_bgr: np.ndarray, params: ProposalParams | None = None) -> 
     if img.size == 0:
         return {k: np.zeros(img.shape[:2], np.uint8) for k in ("red", "blue", "union")}
     hsv = _hsv(img, params)
-    out = {c: _hue_mask(hsv, hues, s, v) for c, hues, s, v in _color_specs(params, hsv)}
+    out = {c: _hue_mask(hsv, hues, s, v) for c, hues, s, v in _color_specs(params, _scales(img, params))}
     out["union"] = cv2.bitwise_or(out["red"], out["blue"])
     return out
 
@@ -423,12 +426,13 @@ def propose(image_bgr: np.ndarray, params: ProposalParams | None = None, half: n
     if params.separate_colors and params.regions:
         blobs = _search_regions(img, params, half if half is not None and half.shape == (H // 2, W // 2, 3) else None)
     elif params.separate_colors:
-        blobs = _search_frame(_hsv(img, params), params)
+        scales = _scales(img, params)
+        blobs = _search_frame(_hsv(img, params), params, scales, _color_specs(params, scales))
     else:  # S1: one union mask, colour decided afterwards
         hsv = _hsv(img, params)
-        scales = _scales(hsv, params)
+        scales = _scales(img, params)
         ctx = _make_ctx(W, H, params, scales[1])
-        specs = _color_specs(params, hsv, scales)
+        specs = _color_specs(params, scales)
         blobs = []
         masks = {c: _hue_mask(hsv, hues, s, v) for c, hues, s, v in specs}
         union = cv2.bitwise_or(masks["red"], masks["blue"])
@@ -440,13 +444,9 @@ def propose(image_bgr: np.ndarray, params: ProposalParams | None = None, half: n
     return [SignDetection("unknown", round(b.score, 4), _pad(b.box, params.pad_frac, W, H), b.color) for b in kept]
 
 
-def _search_frame(hsv: np.ndarray, params: ProposalParams, scales: tuple[float, float] | None = None,
-                  specs=None) -> list[_Blob]:
-    """The robust search of both colours in the whole HSV frame; `scales` and `specs` default
-    to the frame's own (_scales, _color_specs)."""
+def _search_frame(hsv: np.ndarray, params: ProposalParams, scales: tuple[float, float], specs) -> list[_Blob]:
+    """The robust search of both colours (specs) in the whole HSV frame."""
     H, W = hsv.shape[:2]
-    scales = scales or _scales(hsv, params)
-    specs = specs or _color_specs(params, hsv, scales)
     ctx = _make_ctx(W, H, params, scales[1])
     return _search_windows([planes.window(hsv, (0, 0, W, H), specs, _chroma_floor(ctx))], ctx, specs, whole=True)
 
@@ -468,16 +468,14 @@ def _search_regions(img: np.ndarray, params: ProposalParams, small: np.ndarray |
     """Coarse to fine: the robust search on a half-size copy (area-averaged, which also does the
     blur's work) finds where signs may be; the full-resolution search then runs in a window
     around each (signs/roi.py makes blurred HSV for the windows only) and gives the boxes. The
-    frame's thresholds come from a sparse sample of the full-resolution frame, for both.
+    frame's thresholds come from a sparse sample of the half-size copy, for both.
     A colour is searched at full resolution only around its own coarse blobs: a blue window
     (often sky or a wall around a blue candidate) searched for red too cost time and found
     mostly clutter (a red sign there has its own coarse blob and window)."""
     H, W = img.shape[:2]
-    scales = _scales_of(sign_roi.sparse_blurred_hsv(img, SPARSE, params.blur_px), params)
-    specs = _color_specs(params, img, scales)
-    if small is None:
-        small = cv2.resize(img, (max(1, W // 2), max(1, H // 2)), interpolation=cv2.INTER_AREA)
-    small_hsv = cv2.cvtColor(small, cv2.COLOR_BGR2HSV)
+    small_hsv = cv2.cvtColor(_half(img) if small is None else small, cv2.COLOR_BGR2HSV)
+    scales = _scales(img, params, small_hsv)
+    specs = _color_specs(params, scales)
     # the coarse pass only says where to look: it keeps smaller and less sign-like blobs than the
     # full-resolution search will (a small sign's outline is ragged at half size)
     loose = replace(params, min_score=COARSE_MIN_SCORE * params.min_score,
@@ -488,7 +486,7 @@ def _search_regions(img: np.ndarray, params: ProposalParams, small: np.ndarray |
     if not coarse:
         return []
     ctx = _make_ctx(W, H, params, scales[1])
-    scale = (W / small.shape[1], H / small.shape[0])
+    scale = (W / small_hsv.shape[1], H / small_hsv.shape[0])
     blobs: list[_Blob] = []
     for spec in specs:  # each colour only around what the half-size search found of that colour
         boxes = sign_roi.windows([b.box for b in coarse if b.color == spec[0]], scale, (W, H), ctx.min_size)

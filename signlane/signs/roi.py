@@ -62,25 +62,3 @@ def blurred_hsv(image: np.ndarray, box: Box, blur_px: int) -> np.ndarray:
     if r:
         part = cv2.GaussianBlur(part, (blur_px | 1, blur_px | 1), 0)
     return cv2.cvtColor(np.ascontiguousarray(part[y0 - ey0:y1 - ey0, x0 - ex0:x1 - ex0]), cv2.COLOR_BGR2HSV)
-
-
-def sparse_blurred_hsv(image: np.ndarray, step: int, blur_px: int) -> np.ndarray:
-    """HSV of the blurred frame at every `step`-th row and column (what [::step, ::step] of the
-    full blurred HSV holds), blurring only the rows those pixels need."""
-    H = image.shape[0]
-    r = (blur_px | 1) // 2 if blur_px > 1 else 0
-    if not r:
-        return cv2.cvtColor(np.ascontiguousarray(image[::step, ::step]), cv2.COLOR_BGR2HSV)
-    k = 2 * r + 1
-    ys = np.arange(0, H, step)
-    # each sampled row with its neighbours, reflected at the frame's top and bottom as OpenCV's
-    # default border (BORDER_REFLECT_101) does: blurring the stacked rows gives, on each group's
-    # middle row, the blurred frame's row (the columns keep their real neighbours and edges)
-    rows = image[_reflect(ys[:, None] + np.arange(-r, r + 1)[None, :], H).reshape(-1)]
-    blurred = cv2.GaussianBlur(rows, (k, k), 0)
-    return cv2.cvtColor(np.ascontiguousarray(blurred[r::k, ::step]), cv2.COLOR_BGR2HSV)
-
-
-def _reflect(i: np.ndarray, n: int) -> np.ndarray:
-    i = np.abs(i)
-    return np.where(i >= n, 2 * (n - 1) - i, i)
