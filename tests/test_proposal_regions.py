@@ -135,3 +135,14 @@ def test_frame_thresholds_from_the_half_copy_match_the_full_frames(sign_frames):
                 assert abs(s_w - s_g) <= 1 and abs(v_w - v_g) <= 1, (want, got)
     dark = (sign_frames[0][0] * 0.35).astype(np.uint8)
     assert proposals._scales(dark, params)[1] < 0.6  # a dark frame does lower the V floors
+
+
+def test_big_coarse_blobs_need_the_full_score():
+    # small coarse blobs are kept at the loose score (ragged outlines at half size); a big one
+    # (sky, wall, asphalt patch) must look like a sign as the full search requires
+    blob = proposals._Blob
+    size = proposals.COARSE_BIG
+    blobs = [blob((0, 0, size - 1, size + 5), "blue", 0.3), blob((50, 0, size, size + 5), "blue", 0.3),
+             blob((90, 0, size + 60, size), "red", 0.45)]
+    kept = proposals._coarse_candidates(blobs, 0.4)
+    assert [b.box for b in kept] == [blobs[0].box, blobs[2].box]

@@ -25,6 +25,7 @@ image pixels, origin top-left. OpenCV's 8-bit hue runs 0..180 (degrees / 2).
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import lru_cache
 
 import cv2
 import numpy as np
@@ -38,6 +39,7 @@ ColorSpec = tuple[str, tuple[HueRange, ...], int, int]  # colour, hue ranges, fi
 COARSE_MIN_SCORE = 0.5  # of min_score, for the half-size pass of the region search ...
 COARSE_SIZE = 0.75  # ... of min_size_frac ...
 COARSE_S = 0.6  # ... and of the first saturation level
+COARSE_BIG = 32  # px at half size (a 64 px sign): a coarse blob this big needs the full min_score
 SPARSE = 4  # the frame-level percentiles look at every 4th row and column of the half-size copy
 RING_GROW = 0.09  # a ring's width / its outer diameter, typical: the interior grows by this per side
 
@@ -464,6 +466,23 @@ def _search_windows(wins: list[planes.Window], ctx: _Ctx, specs, whole: bool) ->
     return blobs
 
 
+@lru_cache(maxsize=8)
+def _coarse_params(params: ProposalParams) -> ProposalParams:
+    """The coarse pass only says where to look: it keeps smaller and less sign-like blobs than
+    the full-resolution search will (a small sign's outline is ragged at half size). Cached: a
+    dataclass replace costs tens of microseconds a frame."""
+    return replace(params, min_score=COARSE_MIN_SCORE * params.min_score,
+                   min_size_frac=COARSE_SIZE * params.min_size_frac)
+
+
+def _coarse_candidates(blobs: list[_Blob], min_score: float) -> list[_Blob]:
+    """The coarse blobs worth a full-resolution look. The looser score is for small blobs, whose
+    outline is ragged at half size; one COARSE_BIG px or more across is outlined as well as at
+    full size, so it needs the full search's score (a wide sky, wall or asphalt patch otherwise
+    sent the full-resolution search over much of the frame, to no proposal)."""
+    return [b for b in blobs if min(b.box[2], b.box[3]) < COARSE_BIG or b.score >= min_score]
+
+
 def _search_regions(img: np.ndarray, params: ProposalParams, small: np.ndarray | None) -> list[_Blob]:
     """Coarse to fine: the robust search on a half-size copy (area-averaged, which also does the
     blur's work) finds where signs may be; the full-resolution search then runs in a window
@@ -476,13 +495,10 @@ def _search_regions(img: np.ndarray, params: ProposalParams, small: np.ndarray |
     small_hsv = cv2.cvtColor(_half(img) if small is None else small, cv2.COLOR_BGR2HSV)
     scales = _scales(img, params, small_hsv)
     specs = _color_specs(params, scales)
-    # the coarse pass only says where to look: it keeps smaller and less sign-like blobs than the
-    # full-resolution search will (a small sign's outline is ragged at half size)
-    loose = replace(params, min_score=COARSE_MIN_SCORE * params.min_score,
-                    min_size_frac=COARSE_SIZE * params.min_size_frac)
-    # and paler ones: averaging 2x2 pixels halves a thin ring's saturation against a white face
+    loose = _coarse_params(params)
+    # the coarse pass also keeps paler blobs: averaging 2x2 pixels halves a thin ring's saturation against a white face
     pale = [(c, hues, int(COARSE_S * s_min), v_min) for c, hues, s_min, v_min in specs]
-    coarse = _search_frame(small_hsv, loose, scales, pale)
+    coarse = _coarse_candidates(_search_frame(small_hsv, loose, scales, pale), params.min_score)
     if not coarse:
         return []
     ctx = _make_ctx(W, H, params, scales[1])
