@@ -454,8 +454,8 @@ def _search_frame(hsv: np.ndarray, params: ProposalParams, scales: tuple[float, 
 
 
 def _search_windows(wins: list[planes.Window], ctx: _Ctx, specs, whole: bool) -> list[_Blob]:
-    """The robust search of both colours inside each window; pixels outside every window are
-    never looked at (a blob a window cuts is no proposal, unless the window is the `whole` frame)."""
+    """The robust search of the colours of specs inside each window; pixels outside every window
+    are never looked at (a blob a window cuts is no proposal, unless the window is the `whole` frame)."""
     blobs: list[_Blob] = []
     for color, _, s_min, _ in specs:  # in the full-frame order: red, red rings, blue
         for win in wins:
@@ -496,7 +496,8 @@ def _search_regions(img: np.ndarray, params: ProposalParams, small: np.ndarray |
     scales = _scales(img, params, small_hsv)
     specs = _color_specs(params, scales)
     loose = _coarse_params(params)
-    # the coarse pass also keeps paler blobs: averaging 2x2 pixels halves a thin ring's saturation against a white face
+    # the coarse pass also keeps paler blobs: averaging 2x2 pixels halves a thin ring's saturation
+    # against a white face
     pale = [(c, hues, int(COARSE_S * s_min), v_min) for c, hues, s_min, v_min in specs]
     coarse = _coarse_candidates(_search_frame(small_hsv, loose, scales, pale), params.min_score)
     if not coarse:
