@@ -15,8 +15,9 @@ Two variants share one code path, chosen by :class:`ProposalParams`:
   frame, blobs are scored by shape (signs are discs and octagons; a blob cut by the frame edge by
   a circle fit), and non-maximum suppression and a per-frame cap finish the list. It runs coarse
   to fine (``regions``): the same search on a half-size copy, with looser size, shape and
-  saturation floors, says where signs may be, and the full-resolution search runs in windows
-  around those places only (``signs/roi.py``); a sign both find has the same box.
+  saturation floors, says where signs of each colour may be, and each colour's full-resolution
+  search runs in windows around its own places only (``signs/roi.py``); a sign both find has the
+  same box.
 
 All images are ``uint8`` ``(H, W, 3)`` **BGR** (OpenCV order); boxes are ``(x, y, w, h)`` int
 image pixels, origin top-left. OpenCV's 8-bit hue runs 0..180 (degrees / 2).
@@ -24,10 +25,12 @@ image pixels, origin top-left. OpenCV's 8-bit hue runs 0..180 (degrees / 2).
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import lru_cache
 
 import cv2
 import numpy as np
 
+from signlane.signs import planes
 from signlane.signs import roi as sign_roi
 from signlane.types import SignDetection
 
@@ -36,7 +39,8 @@ ColorSpec = tuple[str, tuple[HueRange, ...], int, int]  # colour, hue ranges, fi
 COARSE_MIN_SCORE = 0.5  # of min_score, for the half-size pass of the region search ...
 COARSE_SIZE = 0.75  # ... of min_size_frac ...
 COARSE_S = 0.6  # ... and of the first saturation level
-SPARSE = 8  # the frame-level percentiles look at every 8th row and column
+COARSE_BIG = 32  # px at half size (a 64 px sign): a coarse blob this big needs the full min_score
+SPARSE = 4  # the frame-level percentiles look at every 4th row and column of the half-size copy
 RING_GROW = 0.09  # a ring's width / its outer diameter, typical: the interior grows by this per side
 
 
@@ -94,35 +98,31 @@ def _hue_mask(hsv: np.ndarray, hues: tuple[HueRange, ...], s_min: int, v_min: in
     return mask
 
 
-def _scales(hsv: np.ndarray, params: ProposalParams) -> tuple[float, float]:
+def _scales(img: np.ndarray, params: ProposalParams, small_hsv: np.ndarray | None = None) -> tuple[float, float]:
     """(S, V) threshold factors <= 1 from sparse percentiles of the frame: a dark frame lowers
     V minimums, a washed-out one (over-exposure, glare, haze: little saturation anywhere) lowers
-    the first S level. Percentiles, so that one bright sky or one vivid wall does not decide."""
-    if not params.adaptive or hsv.size == 0:
+    the first S level. Percentiles, so that one bright sky or one vivid wall does not decide.
+    They are read off the half-size copy's HSV (`small_hsv`, made from img when not given),
+    which the region search has anyway: its 2x2 averages smooth noise as the full frame's blur
+    does, and every search variant then adapts to the same numbers."""
+    if not params.adaptive or img.size == 0:
         return 1.0, 1.0
-    return _scales_of(hsv[::SPARSE, ::SPARSE], params)
-
-
-def _scales_of(sparse_hsv: np.ndarray, params: ProposalParams) -> tuple[float, float]:
-    """_scales from the HSV pixels at every SPARSE-th row and column."""
-    if not params.adaptive or sparse_hsv.size == 0:
-        return 1.0, 1.0
-    sparse = sparse_hsv.reshape(-1, 3)
-    s95, v90 = np.percentile(sparse[:, 1], 95), np.percentile(sparse[:, 2], 90)
+    if small_hsv is None:
+        small_hsv = cv2.cvtColor(_half(img), cv2.COLOR_BGR2HSV)
+    sparse = small_hsv[::SPARSE, ::SPARSE].reshape(-1, 3)
+    s95, v90 = planes.percentile_u8(sparse[:, 1], 95), planes.percentile_u8(sparse[:, 2], 90)
     return float(np.clip(s95 / params.washed_s, 0.5, 1.0)), float(np.clip(v90 / 200.0, 0.35, 1.0))
 
 
-def _chroma_mask(hsv: np.ndarray, c_min: float) -> np.ndarray | None:
-    if c_min <= 0:
-        return None
-    chroma = cv2.multiply(hsv[:, :, 1], hsv[:, :, 2], scale=1 / 255.0)
-    return cv2.threshold(chroma, c_min - 1e-3, 255, cv2.THRESH_BINARY)[1]
+def _half(img: np.ndarray) -> np.ndarray:
+    """The frame at (W // 2, H // 2) (at least 1 px), area-averaged: the region search's copy."""
+    H, W = img.shape[:2]
+    return cv2.resize(img, (max(1, W // 2), max(1, H // 2)), interpolation=cv2.INTER_AREA)
 
 
-def _color_specs(params: ProposalParams, hsv: np.ndarray, scales: tuple[float, float] | None = None
-                 ) -> tuple[ColorSpec, ColorSpec]:
-    """Red's and blue's thresholds, adapted to the frame (by `scales`, else from hsv)."""
-    ks, kv = scales or _scales(hsv, params)
+def _color_specs(params: ProposalParams, scales: tuple[float, float]) -> tuple[ColorSpec, ColorSpec]:
+    """Red's and blue's thresholds, adapted to the frame by its `scales` (_scales)."""
+    ks, kv = scales
     return (("red", params.red_hue, int(params.red_s_min * ks), int(params.red_v_min * kv)),
             ("blue", params.blue_hue, int(params.blue_s_min * ks), int(params.blue_v_min * kv)))
 
@@ -135,7 +135,7 @@ def color_masks(image_bgr: np.ndarray, params: ProposalParams | None = None) -> 
     if img.size == 0:
         return {k: np.zeros(img.shape[:2], np.uint8) for k in ("red", "blue", "union")}
     hsv = _hsv(img, params)
-    out = {c: _hue_mask(hsv, hues, s, v) for c, hues, s, v in _color_specs(params, hsv)}
+    out = {c: _hue_mask(hsv, hues, s, v) for c, hues, s, v in _color_specs(params, _scales(img, params))}
     out["union"] = cv2.bitwise_or(out["red"], out["blue"])
     return out
 
@@ -222,17 +222,19 @@ class _Ctx:
     min_size: int
     kernel: np.ndarray | None  # closing kernel, None = no closing
     ring_kernel: np.ndarray | None  # the wider one of the extra red pass
-    hsv: np.ndarray  # the frame, for looking inside ring interiors
     v_scale: float = 1.0  # the frame's V threshold factor (_scales), for the chroma floor
 
 
-def _make_ctx(hsv: np.ndarray, params: ProposalParams, v_scale: float | None = None) -> _Ctx:
-    H, W = hsv.shape[:2]
-    v_scale = _scales(hsv, params)[1] if v_scale is None else v_scale
+def _make_ctx(W: int, H: int, params: ProposalParams, v_scale: float) -> _Ctx:
     min_size = params.min_size
     if params.min_size_frac > 0:  # scale with the frame, but never ask for more than min_size
         min_size = max(4, min(params.min_size, int(round(params.min_size_frac * H))))
-    return _Ctx(params, W, H, min_size, _disc(params.close_px, H), _disc(params.ring_close_px, H), hsv, v_scale)
+    return _Ctx(params, W, H, min_size, _disc(params.close_px, H), _disc(params.ring_close_px, H), v_scale)
+
+
+def _chroma_floor(ctx: _Ctx) -> float:
+    """S * V / 255 (= max - min of B, G, R) a pixel needs: tinted dark asphalt has little."""
+    return ctx.params.chroma_min * ctx.v_scale
 
 
 def _disc(px_at_480: int, H: int) -> np.ndarray | None:
@@ -255,26 +257,18 @@ def _components(mask: np.ndarray, color: str, ctx: _Ctx) -> list[_Blob]:
     return [_Blob(b, color, 1.0) for b in boxes if _size_ok(*b, ctx)]
 
 
-def _level_mask(hue_ok: np.ndarray, sat: np.ndarray, s_min: int, roi: tuple[int, int, int, int],
-                kernel: np.ndarray | None) -> np.ndarray:
-    x0, y0, x1, y1 = roi
-    _, mask = cv2.threshold(sat[y0:y1, x0:x1], s_min - 1, 255, cv2.THRESH_BINARY)
-    mask = cv2.bitwise_and(mask, hue_ok[y0:y1, x0:x1])
-    return mask if kernel is None else cv2.morphologyEx(mask, cv2.MORPH_CLOSE, kernel)
-
-
-def _search(hue_ok: np.ndarray, sat: np.ndarray, s_min: int, roi: tuple[int, int, int, int], color: str,
-            ctx: _Ctx, depth: int, out: list[_Blob], window: tuple[int, int, int, int] | None = None) -> None:
-    """Outer contours (holes filled) of `hue_ok & sat >= s_min` inside roi (x0, y0, x1, y1).
-    With `window` (a region searched alone, not the frame), a blob touching its inner edges may
-    be cut by it: it is no proposal, but it is searched inside as any other.
+def _search(win: planes.Window, s_min: int, roi: tuple[int, int, int, int], color: str, ctx: _Ctx, depth: int,
+            out: list[_Blob], window: tuple[int, int, int, int] | None = None) -> None:
+    """Outer contours (holes filled) of the window's `color` pixels at saturation >= s_min inside
+    roi (x0, y0, x1, y1). With `window` (a region searched alone, not the frame), a blob touching
+    its inner edges may be cut by it: it is no proposal, but it is searched inside as any other.
 
     A blob that is not a confident sign is searched again inside its own box one saturation step
     up: a sign glued to a paler background of its colour (sky behind a blue disc, a red wall
     behind a ring) separates from it at some level, while a lone faded sign is found at the first.
     """
     p = ctx.params
-    mask = _level_mask(hue_ok, sat, s_min, roi, ctx.kernel)
+    mask = planes.level_mask(win.crop(win.sat[color], roi), s_min, ctx.kernel)
     rings = p.ring_holes and color == "red"
     mode = cv2.RETR_CCOMP if rings else cv2.RETR_EXTERNAL
     contours, hier = cv2.findContours(mask, mode, cv2.CHAIN_APPROX_SIMPLE, offset=roi[:2])
@@ -292,9 +286,9 @@ def _search(hue_ok: np.ndarray, sat: np.ndarray, s_min: int, roi: tuple[int, int
             if score >= p.min_score:
                 out.append(_Blob((x, y, w, h), color, score))
         if rings:  # even a confident blob: a ring glued to a wall can make a round-ish whole
-            out += _rings_in_holes(contours, hier[0], i, ctx)
+            out += _rings_in_holes(contours, hier[0], i, ctx, win)
         if score < p.confident and depth < p.max_depth and s_min + p.s_step <= 255:
-            _search(hue_ok, sat, s_min + p.s_step, (x, y, x + w, y + h), color, ctx, depth + 1, out, window)
+            _search(win, s_min + p.s_step, (x, y, x + w, y + h), color, ctx, depth + 1, out, window)
 
 
 def _cut(x: int, y: int, w: int, h: int, window: tuple[int, int, int, int] | None, ctx: _Ctx) -> bool:
@@ -305,13 +299,11 @@ def _cut(x: int, y: int, w: int, h: int, window: tuple[int, int, int, int] | Non
     return (0 < x0 >= x) or (0 < y0 >= y) or (ctx.W > x1 <= x + w) or (ctx.H > y1 <= y + h)
 
 
-def _closed_rings(hue_ok: np.ndarray, sat: np.ndarray, s_min: int, ctx: _Ctx,
-                  roi: tuple[int, int, int, int] | None = None) -> list[_Blob]:
+def _closed_rings(win: planes.Window, s_min: int, ctx: _Ctx, roi: tuple[int, int, int, int]) -> list[_Blob]:
     """Thin, faded rings break into arcs that no level joins. A wide closing joins them; a blob
     then counts only if it encloses a hole nearly its own size (the ring's interior), so that
     the wide closing does not add merged clutter. Scored a little below the plain search."""
-    roi = roi or (0, 0, ctx.W, ctx.H)
-    mask = _level_mask(hue_ok, sat, s_min, roi, ctx.ring_kernel)
+    mask = planes.level_mask(win.crop(win.sat["red"], roi), s_min, ctx.ring_kernel)
     contours, hier = cv2.findContours(mask, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_SIMPLE, offset=roi[:2])
     out = []
     for i, c in enumerate(contours):
@@ -327,7 +319,7 @@ def _closed_rings(hue_ok: np.ndarray, sat: np.ndarray, s_min: int, ctx: _Ctx,
     return out
 
 
-def _rings_in_holes(contours, hier: np.ndarray, parent: int, ctx: _Ctx) -> list[_Blob]:
+def _rings_in_holes(contours, hier: np.ndarray, parent: int, ctx: _Ctx, win: planes.Window) -> list[_Blob]:
     """Ring signs glued to a red background: their pale interior is a hole of the red blob, cut in
     two by the slash. Overlapping holes are joined; a round cluster, pale but holding a dark arrow
     (which tells it from the white text of a stop sign), gives the sign's box: the interior grown
@@ -345,7 +337,7 @@ def _rings_in_holes(contours, hier: np.ndarray, parent: int, ctx: _Ctx) -> list[
         pts = np.concatenate([contours[k] for k in members])
         x, y, w, h = cv2.boundingRect(pts)
         score = 0.9 * _shape_score(cv2.convexHull(pts), w, h)
-        if score < ctx.params.min_score or not _ring_interior(contours, members, (x, y, w, h), ctx.hsv):
+        if score < ctx.params.min_score or not _ring_interior(contours, members, (x, y, w, h), win):
             continue
         gx, gy = int(round(w * RING_GROW)), int(round(h * RING_GROW))
         box = (x - gx, y - gy, w + 2 * gx, h + 2 * gy)
@@ -368,12 +360,12 @@ def _overlapping_groups(holes: list[tuple[int, tuple[int, int, int, int]]]) -> l
     return [m for m, _ in groups]
 
 
-def _ring_interior(contours, members: list[int], box: tuple[int, int, int, int], hsv: np.ndarray) -> bool:
+def _ring_interior(contours, members: list[int], box: tuple[int, int, int, int], win: planes.Window) -> bool:
     """Are the hole pixels mostly pale (low S) with a darker part (the arrow)?"""
     x, y, w, h = box
     m = np.zeros((h, w), np.uint8)
     cv2.drawContours(m, [contours[k] for k in members], -1, 255, -1, offset=(-x, -y))
-    px = hsv[y:y + h, x:x + w][m > 0]
+    px = win.crop(win.hsv, (x, y, x + w, y + h))[m > 0]
     if len(px) < 8:
         return False
     v5, v50 = np.percentile(px[:, 2], [5, 50])
@@ -436,12 +428,13 @@ def propose(image_bgr: np.ndarray, params: ProposalParams | None = None, half: n
     if params.separate_colors and params.regions:
         blobs = _search_regions(img, params, half if half is not None and half.shape == (H // 2, W // 2, 3) else None)
     elif params.separate_colors:
-        hsv = _hsv(img, params)
-        blobs = _search_frame(hsv, _make_ctx(hsv, params), _color_specs(params, hsv), [(0, 0, W, H)])
+        scales = _scales(img, params)
+        blobs = _search_frame(_hsv(img, params), params, scales, _color_specs(params, scales))
     else:  # S1: one union mask, colour decided afterwards
         hsv = _hsv(img, params)
-        ctx = _make_ctx(hsv, params)
-        specs = _color_specs(params, hsv)
+        scales = _scales(img, params)
+        ctx = _make_ctx(W, H, params, scales[1])
+        specs = _color_specs(params, scales)
         blobs = []
         masks = {c: _hue_mask(hsv, hues, s, v) for c, hues, s, v in specs}
         union = cv2.bitwise_or(masks["red"], masks["blue"])
@@ -453,63 +446,68 @@ def propose(image_bgr: np.ndarray, params: ProposalParams | None = None, half: n
     return [SignDetection("unknown", round(b.score, 4), _pad(b.box, params.pad_frac, W, H), b.color) for b in kept]
 
 
-def _search_frame(hsv: np.ndarray, ctx: _Ctx, specs, boxes: list[tuple[int, int, int, int]]) -> list[_Blob]:
-    """The robust search of both colours inside each box (x0, y0, x1, y1) of the HSV frame;
-    pixels outside every box are never looked at (a blob a box cuts is no proposal)."""
-    params = ctx.params
+def _search_frame(hsv: np.ndarray, params: ProposalParams, scales: tuple[float, float], specs) -> list[_Blob]:
+    """The robust search of both colours (specs) in the whole HSV frame."""
     H, W = hsv.shape[:2]
-    whole = len(boxes) == 1 and boxes[0] == (0, 0, W, H)
-    sat = np.ascontiguousarray(hsv[:, :, 1]) if whole else np.zeros((H, W), np.uint8)
-    hue_ok = {c: np.zeros((H, W), np.uint8) for c, *_ in specs} if not whole else {}
-    c_min = params.chroma_min * ctx.v_scale
-    for x0, y0, x1, y1 in boxes:
-        part = hsv[y0:y1, x0:x1]
-        if not whole:
-            sat[y0:y1, x0:x1] = part[:, :, 1]
-        chroma_ok = _chroma_mask(part, c_min)
-        for color, hues, _, v_min in specs:
-            ok = _hue_mask(part, hues, 0, v_min)
-            if chroma_ok is not None:
-                ok = cv2.bitwise_and(ok, chroma_ok)
-            if whole:
-                hue_ok[color] = ok
-            else:
-                hue_ok[color][y0:y1, x0:x1] = ok
+    ctx = _make_ctx(W, H, params, scales[1])
+    return _search_windows([planes.window(hsv, (0, 0, W, H), specs, _chroma_floor(ctx))], ctx, specs, whole=True)
+
+
+def _search_windows(wins: list[planes.Window], ctx: _Ctx, specs, whole: bool) -> list[_Blob]:
+    """The robust search of the colours of specs inside each window; pixels outside every window
+    are never looked at (a blob a window cuts is no proposal, unless the window is the `whole` frame)."""
     blobs: list[_Blob] = []
     for color, _, s_min, _ in specs:  # in the full-frame order: red, red rings, blue
-        for box in boxes:
-            _search(hue_ok[color], sat, s_min, box, color, ctx, 0, blobs, None if whole else box)
+        for win in wins:
+            _search(win, s_min, win.box, color, ctx, 0, blobs, None if whole else win.box)
         if color == "red" and ctx.ring_kernel is not None:
-            for box in boxes:
-                blobs += _closed_rings(hue_ok[color], sat, s_min, ctx, box)
+            for win in wins:
+                blobs += _closed_rings(win, s_min, ctx, win.box)
     return blobs
+
+
+@lru_cache(maxsize=8)
+def _coarse_params(params: ProposalParams) -> ProposalParams:
+    """The coarse pass only says where to look: it keeps smaller and less sign-like blobs than
+    the full-resolution search will (a small sign's outline is ragged at half size). Cached: a
+    dataclass replace costs tens of microseconds a frame."""
+    return replace(params, min_score=COARSE_MIN_SCORE * params.min_score,
+                   min_size_frac=COARSE_SIZE * params.min_size_frac)
+
+
+def _coarse_candidates(blobs: list[_Blob], min_score: float) -> list[_Blob]:
+    """The coarse blobs worth a full-resolution look. The looser score is for small blobs, whose
+    outline is ragged at half size; one COARSE_BIG px or more across is outlined as well as at
+    full size, so it needs the full search's score (a wide sky, wall or asphalt patch otherwise
+    sent the full-resolution search over much of the frame, to no proposal)."""
+    return [b for b in blobs if min(b.box[2], b.box[3]) < COARSE_BIG or b.score >= min_score]
 
 
 def _search_regions(img: np.ndarray, params: ProposalParams, small: np.ndarray | None) -> list[_Blob]:
     """Coarse to fine: the robust search on a half-size copy (area-averaged, which also does the
     blur's work) finds where signs may be; the full-resolution search then runs in a window
     around each (signs/roi.py makes blurred HSV for the windows only) and gives the boxes. The
-    frame's thresholds come from a sparse sample of the full-resolution frame, for both."""
+    frame's thresholds come from a sparse sample of the half-size copy, for both.
+    A colour is searched at full resolution only around its own coarse blobs: a blue window
+    (often sky or a wall around a blue candidate) searched for red too cost time and found
+    mostly clutter (a red sign there has its own coarse blob and window)."""
     H, W = img.shape[:2]
-    scales = _scales_of(sign_roi.sparse_blurred_hsv(img, SPARSE, params.blur_px), params)
-    specs = _color_specs(params, img, scales)
-    if small is None:
-        small = cv2.resize(img, (max(1, W // 2), max(1, H // 2)), interpolation=cv2.INTER_AREA)
-    small_hsv = cv2.cvtColor(small, cv2.COLOR_BGR2HSV)
-    # the coarse pass only says where to look: it keeps smaller and less sign-like blobs than the
-    # full-resolution search will (a small sign's outline is ragged at half size)
-    loose = replace(params, min_score=COARSE_MIN_SCORE * params.min_score,
-                    min_size_frac=COARSE_SIZE * params.min_size_frac)
-    # and paler ones: averaging 2x2 pixels halves a thin ring's saturation against a white face
+    small_hsv = cv2.cvtColor(_half(img) if small is None else small, cv2.COLOR_BGR2HSV)
+    scales = _scales(img, params, small_hsv)
+    specs = _color_specs(params, scales)
+    loose = _coarse_params(params)
+    # the coarse pass also keeps paler blobs: averaging 2x2 pixels halves a thin ring's saturation
+    # against a white face
     pale = [(c, hues, int(COARSE_S * s_min), v_min) for c, hues, s_min, v_min in specs]
-    coarse = _search_frame(small_hsv, _make_ctx(small_hsv, loose, scales[1]), pale,
-                           [(0, 0, small.shape[1], small.shape[0])])
+    coarse = _coarse_candidates(_search_frame(small_hsv, loose, scales, pale), params.min_score)
     if not coarse:
         return []
-    hsv = np.zeros((H, W, 3), np.uint8)
-    ctx = _make_ctx(hsv, params, scales[1])
-    scale = (W / small.shape[1], H / small.shape[0])
-    windows = sign_roi.windows([b.box for b in coarse], scale, (W, H), ctx.min_size)
-    for box in windows:
-        sign_roi.blurred_hsv(img, box, params.blur_px, hsv)
-    return _search_frame(hsv, ctx, specs, windows)
+    ctx = _make_ctx(W, H, params, scales[1])
+    scale = (W / small_hsv.shape[1], H / small_hsv.shape[0])
+    blobs: list[_Blob] = []
+    for spec in specs:  # each colour only around what the half-size search found of that colour
+        boxes = sign_roi.windows([b.box for b in coarse if b.color == spec[0]], scale, (W, H), ctx.min_size)
+        wins = [planes.window(sign_roi.blurred_hsv(img, box, params.blur_px), box, [spec], _chroma_floor(ctx))
+                for box in boxes]
+        blobs += _search_windows(wins, ctx, [spec], whole=False)
+    return blobs

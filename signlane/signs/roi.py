@@ -50,10 +50,10 @@ def _merge(boxes: list[list[int]], gap: int) -> list[list[int]]:
     return boxes
 
 
-def blurred_hsv(image: np.ndarray, box: Box, blur_px: int, out: np.ndarray) -> None:
-    """Write into `out` (the frame's HSV buffer) the HSV of the blurred frame inside box, pixel
-    for pixel what blurring the whole frame gives: the blur sees the real pixels beyond the box
-    (and OpenCV's reflected border only at the frame's own edge)."""
+def blurred_hsv(image: np.ndarray, box: Box, blur_px: int) -> np.ndarray:
+    """uint8 (y1 - y0, x1 - x0, 3): the HSV of the blurred frame inside box, pixel for pixel
+    what blurring the whole frame gives: the blur sees the real pixels beyond the box (and
+    OpenCV's reflected border only at the frame's own edge)."""
     x0, y0, x1, y1 = box
     H, W = image.shape[:2]
     r = (blur_px | 1) // 2 if blur_px > 1 else 0
@@ -61,27 +61,4 @@ def blurred_hsv(image: np.ndarray, box: Box, blur_px: int, out: np.ndarray) -> N
     part = image[ey0:ey1, ex0:ex1]
     if r:
         part = cv2.GaussianBlur(part, (blur_px | 1, blur_px | 1), 0)
-    hsv = cv2.cvtColor(part, cv2.COLOR_BGR2HSV)
-    out[y0:y1, x0:x1] = hsv[y0 - ey0:y1 - ey0, x0 - ex0:x1 - ex0]
-
-
-def sparse_blurred_hsv(image: np.ndarray, step: int, blur_px: int) -> np.ndarray:
-    """HSV of the blurred frame at every `step`-th row and column (what [::step, ::step] of the
-    full blurred HSV holds), blurring only the rows those pixels need."""
-    H = image.shape[0]
-    r = (blur_px | 1) // 2 if blur_px > 1 else 0
-    if not r:
-        return cv2.cvtColor(np.ascontiguousarray(image[::step, ::step]), cv2.COLOR_BGR2HSV)
-    k = 2 * r + 1
-    ys = np.arange(0, H, step)
-    # each sampled row with its neighbours, reflected at the frame's top and bottom as OpenCV's
-    # default border (BORDER_REFLECT_101) does: blurring the stacked rows gives, on each group's
-    # middle row, the blurred frame's row (the columns keep their real neighbours and edges)
-    rows = image[_reflect(ys[:, None] + np.arange(-r, r + 1)[None, :], H).reshape(-1)]
-    blurred = cv2.GaussianBlur(rows, (k, k), 0)
-    return cv2.cvtColor(np.ascontiguousarray(blurred[r::k, ::step]), cv2.COLOR_BGR2HSV)
-
-
-def _reflect(i: np.ndarray, n: int) -> np.ndarray:
-    i = np.abs(i)
-    return np.where(i >= n, 2 * (n - 1) - i, i)
+    return cv2.cvtColor(np.ascontiguousarray(part[y0 - ey0:y1 - ey0, x0 - ex0:x1 - ex0]), cv2.COLOR_BGR2HSV)
