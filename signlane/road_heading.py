@@ -6,7 +6,9 @@ junction's mouth is the least reliable of all: the paint that fixes it ends ther
 straight crossing was planned from, and the crossing ended 1.8 m right, on the exit road's edge
 line). Every frame the lane is found, the road's direction in the odometry frame (the car's
 odometry heading plus the lane's heading) is one sample of it; their median over the last few
-metres gives the road's direction where the car is now, and so the car's heading against it.
+metres gives the road's direction where the car is now, and so the car's heading against it,
+when they agree (a road that turned inside those metres has no one direction: then this frame's
+lane heading is used, as before).
 (A straight-line fit against the odometer, tried first, follows a bend better but carries a bend
 that ends at the junction's mouth on past its end: 8.0 degrees from samples of 5.3-6.6 there.)
 """
@@ -24,12 +26,13 @@ class RoadHeading:
     """Samples of the road's direction (radians, counter-clockwise, the odometry frame) against the
     odometer. `window_m`: how far back samples count; an answer needs `min_samples` of them spread
     over `min_span_m`, from frames whose lane confidence is at least `min_confidence`, at most one
-    per `step_m` driven."""
+    per `step_m` driven, and agreeing: their robust spread (1.4826 x the median absolute
+    deviation) at most `max_spread` radians."""
 
     def __init__(self, window_m: float = 3.0, min_samples: int = 8, min_span_m: float = 1.5,
-                 min_confidence: float = 0.8, step_m: float = 0.1):
+                 min_confidence: float = 0.8, step_m: float = 0.1, max_spread: float = math.radians(2.0)):
         self.window_m, self.min_samples, self.min_span_m = window_m, min_samples, min_span_m
-        self.min_confidence, self.step_m = min_confidence, step_m
+        self.min_confidence, self.step_m, self.max_spread = min_confidence, step_m, max_spread
         self._samples: deque[tuple[float, float]] = deque()
 
     def reset(self) -> None:
@@ -54,4 +57,11 @@ class RoadHeading:
             return None
         # each against the car's heading now, wrapped to (-pi, pi]: no seam inside the median
         rel = (np.array([a for _, a in recent]) - car_heading + math.pi) % (2 * math.pi) - math.pi
-        return float(np.median(rel))
+        mid = float(np.median(rel))
+        # a road that turned inside the window (a lane shift or a bend just before the junction)
+        # has no one direction: say nothing, rather than a median of two roads (VIA-style seed 13:
+        # samples from -38 to +15 degrees out of a lane shift, the median -19, the turn laid 34
+        # degrees askew and the car over the kerb)
+        if 1.4826 * float(np.median(np.abs(rel - mid))) > self.max_spread:
+            return None
+        return mid
