@@ -362,7 +362,7 @@ class Behaviour:
         # where the turn's arc ends (its straight tail follows), or a straight crossing's far side
         # (where the exit road's paint begins): past it, the exit road's own lane may lead on
         self._arc_end = self.path[-len(_TAIL_X) - 1] if self.turn != "straight" else \
-            self.path[min(int(far / 0.25), len(self.path) - 1)]
+            self.path[min(int(far / _PATH_STEP_M), len(self.path) - 1)]
         self._seen_path = None  # traced before the junction: not the way out of it
         self.follow.reset()
         return True
@@ -396,7 +396,8 @@ class Behaviour:
         return steering, v / self.p.max_speed, f"junction-{self.turn}"
 
 
-_TAIL_X = np.arange(0.25, 12.0, 0.25)  # a turn's straight tail out of its arc, metres
+_PATH_STEP_M = 0.25  # junction paths are sampled this often
+_TAIL_X = np.arange(_PATH_STEP_M, 12.0, _PATH_STEP_M)  # a turn's straight tail out of its arc, metres
 
 
 def _rotate(path: np.ndarray, heading: float) -> np.ndarray:
@@ -412,12 +413,12 @@ def _junction_path(turn: str, y_c: float, lateral_m: float, p: BehaviourParams, 
     two-lane road the exit lane is the right one of the side road; on a kerbed carriageway its
     middle, reached with the same radius either way."""
     if turn == "straight":
-        ys = np.arange(0.0, y_c + 10.0, 0.25)
+        ys = np.arange(0.0, y_c + 10.0, _PATH_STEP_M)
         return np.column_stack([np.full_like(ys, lateral_m), ys])
     r, y_exit, sgn = _turn(turn, y_c, p, two_lane)
     y0 = max(y_exit - r, 0.5)
-    lead = np.column_stack([np.full(int(y0 / 0.25) + 1, lateral_m), np.linspace(0, y0, int(y0 / 0.25) + 1)])
-    a = np.linspace(0, math.pi / 2, max(8, int(r * math.pi / 2 / 0.25)))
+    lead = np.column_stack([np.full(int(y0 / _PATH_STEP_M) + 1, lateral_m), np.linspace(0, y0, int(y0 / _PATH_STEP_M) + 1)])
+    a = np.linspace(0, math.pi / 2, max(8, int(r * math.pi / 2 / _PATH_STEP_M)))
     arc = np.column_stack([lateral_m + sgn * r * (1 - np.cos(a)), y0 + r * np.sin(a)])
     tail = np.column_stack([arc[-1, 0] + sgn * _TAIL_X, np.full_like(_TAIL_X, arc[-1, 1])])
     return np.concatenate([lead, arc, tail])

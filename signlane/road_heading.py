@@ -35,9 +35,6 @@ class RoadHeading:
         self.min_confidence, self.step_m, self.max_spread = min_confidence, step_m, max_spread
         self._samples: deque[tuple[float, float]] = deque()
 
-    def reset(self) -> None:
-        self._samples.clear()
-
     def add(self, odo_m: float, car_heading: float, lane: LaneEstimate) -> None:
         """One frame: the odometer (m), the car's odometry heading (radians CCW) and its lane."""
         # one sample per `step_m` driven: a car waiting at a stop line would otherwise fill the
@@ -51,7 +48,7 @@ class RoadHeading:
 
     def car_heading(self, odo_m: float, car_heading: float) -> float | None:
         """The car's heading against the road at the odometer odo_m (radians, + the car points
-        right of it, as LaneEstimate.heading), or None with too few samples."""
+        right of it, as LaneEstimate.heading), or None with too few samples or samples that disagree."""
         recent = [(d, a) for d, a in self._samples if d >= odo_m - self.window_m]
         if len(recent) < self.min_samples or recent[-1][0] - recent[0][0] < self.min_span_m:
             return None
