@@ -36,7 +36,8 @@ class RoadEdgesParams:
     px_per_m: float = 8.0
     lab_tol: tuple[float, float, float] = (26.0, 9.0, 9.0)
     shadow_floor: float = 0.35  # shadowed road keeps at least this share of the reference lightness
-    bright_l: float = 30.0  # kerbs and paint: this much lighter than the road, and colourless
+    bright_l: float = 30.0  # paint: this much lighter than the road either side of it ...
+    line_max_m: float = 0.6  # ... over a run narrower than this
     width_m: float = 4.0  # nominal carriageway width (VIA's); the measured one takes over
     min_width_m: float = 2.2
     max_width_m: float = 9.0  # wider rows are a junction or a bend seen side-on
@@ -103,13 +104,27 @@ def road_mask(bev_bgr: np.ndarray, visible: np.ndarray, p: RoadEdgesParams,
     light = (d[..., 0] < p.lab_tol[0]) | ((lab[..., 0] < ref[0]) & (lab[..., 0] > p.shadow_floor * ref[0]))
     road = light & (d[..., 1] < p.lab_tol[1]) & (d[..., 2] < p.lab_tol[2])
     grey = (np.abs(lab[..., 1] - 128) < 16) & (np.abs(lab[..., 2] - 128) < 16)
-    bright = (lab[..., 0] > ref[0] + p.bright_l) & grey
+    bright = _lines(lab, p)
     # paint and kerbs belong to the carriageway, and so does grey asphalt lighter than the patch
     # ahead by more than the tolerance (a mottled road: else its light blotches are holes that
     # stop the scan well inside the road)
     lighter = (lab[..., 0] >= ref[0] + p.lab_tol[0]) & grey
-    road = cv2.morphologyEx(((road | lighter) & visible).astype(np.uint8), cv2.MORPH_OPEN, _OPEN) > 0
+    # (lines too: a yellow centre line is not grey, and would split the carriageway in two)
+    road = cv2.morphologyEx(((road | lighter | bright) & visible).astype(np.uint8), cv2.MORPH_OPEN, _OPEN) > 0
     return road, bright & visible, ref, lab
+
+
+def _lines(lab: np.ndarray, p: RoadEdgesParams) -> np.ndarray:
+    """Painted lines in a bird's-eye Lab image: pixels lighter than the ground either side of them
+    by bright_l, in a run narrower than line_max_m (a top-hat across the road), grey or yellow.
+    Local contrast, not lightness against the patch ahead: with that patch in shadow, the whole
+    sunlit road is lighter than it, and kerbed roads read as having a centre line."""
+    k = max(3, int(round(p.line_max_m * p.px_per_m)) | 1)
+    light = lab[..., 0].astype(np.uint8)
+    ridge = cv2.morphologyEx(light, cv2.MORPH_TOPHAT, np.ones((1, k), np.uint8))
+    a, b = lab[..., 1] - 128, lab[..., 2] - 128
+    grey_or_yellow = (np.abs(a) < 16) & ((np.abs(b) < 16) | (b > 20))
+    return (ridge > p.bright_l) & grey_or_yellow
 
 
 @dataclass(frozen=True)
