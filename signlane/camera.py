@@ -208,11 +208,24 @@ class BirdsEye:
         sx, sy = self.px_per_m
         return np.array([[1 / sx, 0, self.x_range_m[0]], [0, -1 / sy, self.y_range_m[1]], [0, 0, 1]])
 
+    @cached_property
+    def _ground_to_bev_a(self) -> np.ndarray:
+        # made once per view: the warps and ground_to_bev ask for it many times a frame
+        return np.linalg.inv(self.bev_to_ground_a())
+
+    @cached_property
+    def _image_to_bev_h(self) -> np.ndarray:
+        return self._ground_to_bev_a @ self.camera.image_to_ground_h()
+
+    @cached_property
+    def _bev_to_image_h(self) -> np.ndarray:
+        return self.camera.ground_to_image_h() @ self.bev_to_ground_a()
+
     def image_to_bev_h(self) -> np.ndarray:
-        return np.linalg.inv(self.bev_to_ground_a()) @ self.camera.image_to_ground_h()
+        return self._image_to_bev_h.copy()
 
     def bev_to_image_h(self) -> np.ndarray:
-        return self.camera.ground_to_image_h() @ self.bev_to_ground_a()
+        return self._bev_to_image_h.copy()
 
     def visible(self) -> np.ndarray:
         """uint8 (h, w) read-only: 255 where the camera sees the ground. Fixed per view, so made
@@ -221,13 +234,13 @@ class BirdsEye:
 
     def warp(self, image: np.ndarray, interpolation: int = cv2.INTER_LINEAR) -> np.ndarray:
         """Camera image (H,W[,C], any dtype) -> bird's-eye image (size[1], size[0][,C])."""
-        return cv2.warpPerspective(image, self.image_to_bev_h(), self.size, flags=interpolation,
+        return cv2.warpPerspective(image, self._image_to_bev_h, self.size, flags=interpolation,
                                    borderMode=cv2.BORDER_CONSTANT)
 
     def unwarp(self, bev: np.ndarray, interpolation: int = cv2.INTER_LINEAR) -> np.ndarray:
         """Bird's-eye image -> camera image of the camera's size (pixels above the horizon are 0)."""
         cam = self.camera
-        out = cv2.warpPerspective(bev, self.bev_to_image_h(), (cam.width, cam.height),
+        out = cv2.warpPerspective(bev, self._bev_to_image_h, (cam.width, cam.height),
                                   flags=interpolation, borderMode=cv2.BORDER_CONSTANT)
         out[~cam.ground_mask(1.0)] = 0
         return out
@@ -238,5 +251,4 @@ class BirdsEye:
 
     def ground_to_bev(self, xy_m: np.ndarray) -> np.ndarray:
         xy = np.asarray(xy_m, dtype=np.float64).reshape(-1, 2)
-        a = np.linalg.inv(self.bev_to_ground_a())
-        return (np.column_stack([xy, np.ones(len(xy))]) @ a.T)[:, :2]
+        return (np.column_stack([xy, np.ones(len(xy))]) @ self._ground_to_bev_a.T)[:, :2]

@@ -15,6 +15,7 @@ painted line (averaged over frames): `centre_paint` above `paint_share` means a 
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import cv2
@@ -159,8 +160,9 @@ class RoadScan:
         b = self.bev
         (u0, v1), (u1, v0) = b.ground_to_bev(np.array([[min(x0, x1), min(y0, y1)], [max(x0, x1), max(y0, y1)]]))
         h, w = self.road.shape
-        u0, u1 = int(np.clip(np.floor(u0), 0, w)), int(np.clip(np.ceil(u1), 0, w))
-        v0, v1 = int(np.clip(np.floor(v0), 0, h)), int(np.clip(np.ceil(v1), 0, h))
+        # scalar arithmetic (the junction checks call this dozens of times a frame)
+        u0, u1 = min(max(math.floor(u0), 0), w), min(max(math.ceil(u1), 0), w)
+        v0, v1 = min(max(math.floor(v0), 0), h), min(max(math.ceil(v1), 0), h)
         if lab:
             return self.road[v0:v1, u0:u1], self.visible[v0:v1, u0:u1], self.lab[v0:v1, u0:u1]
         return self.road[v0:v1, u0:u1], self.visible[v0:v1, u0:u1]
