@@ -15,6 +15,7 @@ painted line (averaged over frames): `centre_paint` above `paint_share` means a 
 """
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass, replace
 
@@ -94,38 +95,49 @@ def road_mask(bev_bgr: np.ndarray, visible: np.ndarray, p: RoadEdgesParams,
     road-coloured and of bright-and-grey pixels. The reference is the patch just ahead of the car,
     unless that patch looks nothing like the road colour `known` from earlier frames (the car is
     over a kerb or off the road): then the known colour."""
-    lab = cv2.cvtColor(bev_bgr, cv2.COLOR_BGR2LAB).astype(np.int16)
+    lab8 = cv2.cvtColor(bev_bgr, cv2.COLOR_BGR2LAB)
+    lab = lab8.astype(np.int16)
     h, w = lab.shape[:2]
     ref = np.median(lab[h - max(2, int(1.2 * p.px_per_m)):, w // 2 - int(0.8 * p.px_per_m): w // 2 + int(0.8 * p.px_per_m)]
                     .reshape(-1, 3), axis=0)
     if known is not None and (abs(ref[0] - known[0]) > p.lab_tol[0] or np.abs(ref[1:] - known[1:]).max() > p.lab_tol[1]):
         ref = np.asarray(known)
     ref = np.round(ref).astype(np.int16)
-    d = np.abs(lab - ref)
-    light = (d[..., 0] < p.lab_tol[0]) | ((lab[..., 0] < ref[0]) & (lab[..., 0] > p.shadow_floor * ref[0]))
-    road = light & (d[..., 1] < p.lab_tol[1]) & (d[..., 2] < p.lab_tol[2])
-    grey = (np.abs(lab[..., 1] - 128) < 16) & (np.abs(lab[..., 2] - 128) < 16)
-    bright = _lines(lab, p)
+    # every test is a box in integer Lab, so each mask is one cv2.inRange on the uint8 image:
+    # road colour is within lab_tol of the reference, or (lightness) a shadow of it, darker but
+    # above shadow_floor of it
+    r = [int(v) for v in ref]
+    lo = [math.floor(v - t) + 1 for v, t in zip(r, p.lab_tol)]
+    hi = [math.ceil(v + t) - 1 for v, t in zip(r, p.lab_tol)]
+    lo[0] = min(lo[0], math.floor(p.shadow_floor * r[0]) + 1)
+    road = cv2.inRange(lab8, _box(lo), _box(hi))
+    bright = _lines(lab8, p)
     # paint and kerbs belong to the carriageway, and so does grey asphalt lighter than the patch
     # ahead by more than the tolerance (a mottled road: else its light blotches are holes that
     # stop the scan well inside the road)
-    lighter = (lab[..., 0] >= ref[0] + p.lab_tol[0]) & grey
+    lighter = cv2.inRange(lab8, _box([math.ceil(r[0] + p.lab_tol[0]), 113, 113]), (255, 143, 143))  # grey: |a|, |b| < 16
     # (lines too: a yellow centre line is not grey, and would split the carriageway in two)
-    road = cv2.morphologyEx(((road | lighter | bright) & visible).astype(np.uint8), cv2.MORPH_OPEN, _OPEN) > 0
-    return road, bright & visible, ref, lab
+    either = cv2.bitwise_or(cv2.bitwise_or(road, lighter), bright)
+    road = cv2.morphologyEx(cv2.bitwise_and(either, visible.view(np.uint8)), cv2.MORPH_OPEN, _OPEN) > 0
+    return road, (bright > 0) & visible, ref, lab
 
 
-def _lines(lab: np.ndarray, p: RoadEdgesParams) -> np.ndarray:
-    """Painted lines in a bird's-eye Lab image: pixels lighter than the ground either side of them
-    by bright_l, in a run narrower than line_max_m (a top-hat across the road), grey or yellow.
-    Local contrast, not lightness against the patch ahead: with that patch in shadow, the whole
-    sunlit road is lighter than it, and kerbed roads read as having a centre line."""
+def _box(v) -> tuple[int, int, int]:
+    return tuple(min(255, max(0, int(x))) for x in v)
+
+
+def _lines(lab8: np.ndarray, p: RoadEdgesParams) -> np.ndarray:
+    """Painted lines in a bird's-eye uint8 Lab image (uint8 0/255): pixels lighter than the ground
+    either side of them by bright_l, in a run narrower than line_max_m (a top-hat across the road),
+    grey or yellow. Local contrast, not lightness against the patch ahead: with that patch in
+    shadow, the whole sunlit road is lighter than it, and kerbed roads read as having a centre line."""
     k = max(3, int(round(p.line_max_m * p.px_per_m)) | 1)
-    light = lab[..., 0].astype(np.uint8)
-    ridge = cv2.morphologyEx(light, cv2.MORPH_TOPHAT, np.ones((1, k), np.uint8))
-    a, b = lab[..., 1] - 128, lab[..., 2] - 128
-    grey_or_yellow = (np.abs(a) < 16) & ((np.abs(b) < 16) | (b > 20))
-    return (ridge > p.bright_l) & grey_or_yellow
+    ridge = cv2.morphologyEx(np.ascontiguousarray(lab8[..., 0]), cv2.MORPH_TOPHAT, np.ones((1, k), np.uint8))
+    lines = cv2.compare(ridge, p.bright_l, cv2.CMP_GT)
+    # |a| < 16 and (|b| < 16 or b > 20), in uint8 Lab
+    grey = cv2.inRange(lab8, (0, 113, 113), (255, 143, 143))
+    yellow = cv2.inRange(lab8, (0, 113, 149), (255, 143, 255))
+    return cv2.bitwise_and(lines, cv2.bitwise_or(grey, yellow))
 
 
 @dataclass(frozen=True)
@@ -179,17 +191,24 @@ def scan_edges(road: np.ndarray, visible: np.ndarray, bev: BirdsEye, p: RoadEdge
     hist_r: list[float] = []
     misses = blind = 0
     stop = "view"
-    # every row's non-road columns (sorted) and first and last seen column, in one pass each:
-    # per-row numpy calls were most of the scan's cost
-    off_r, off_c = np.nonzero(~road)
-    bounds = np.searchsorted(off_r, np.arange(h + 1)).tolist()
+    # every row's runs of road (first and last column, as lists) and first and last seen column,
+    # in one pass each: per-row numpy calls were most of the scan's cost
+    pad = np.zeros((h, w + 2), np.int8)
+    pad[:, 1:-1] = road
+    step = np.diff(pad, axis=1)
+    run_row, run_start = np.nonzero(step == 1)
+    run_end = (np.nonzero(step == -1)[1] - 1).tolist()
+    bounds = np.searchsorted(run_row, np.arange(h + 1)).tolist()
+    run_start = run_start.tolist()
     any_seen = visible.any(axis=1).tolist()
     first_seen = visible.argmax(axis=1).tolist()
     last_seen = (w - 1 - visible[:, ::-1].argmax(axis=1)).tolist()
     for row in range(h - 1, -1, -1):
-        line = road[row]
         c = int(round(centre))
-        if not (0 <= c < w) or not line[c]:
+        lo_run, hi_run = bounds[row], bounds[row + 1]
+        i = bisect.bisect_right(run_start, c, lo_run, hi_run) - 1  # the run starting at or before c
+        if not (0 <= c < w) or i < lo_run or run_end[i] < c:
+            line = road[row]
             lo_c = max(0, c - int(0.6 * k))
             near = np.flatnonzero(line[lo_c: c + int(0.6 * k) + 1])
             if len(near) == 0:
@@ -199,11 +218,9 @@ def scan_edges(road: np.ndarray, visible: np.ndarray, bev: BirdsEye, p: RoadEdge
                     break
                 continue
             c = lo_c + int(near[np.argmin(np.abs(near - (c - lo_c)))])
+            i = bisect.bisect_right(run_start, c, lo_run, hi_run) - 1
         misses = 0
-        off = off_c[bounds[row]:bounds[row + 1]]  # c is road, so it is not among them
-        j = int(np.searchsorted(off, c))
-        left = int(off[j - 1]) + 1 if j > 0 else 0
-        right = int(off[j]) - 1 if j < len(off) else w - 1
+        left, right = run_start[i], run_end[i]  # the run of road through c
         # a run that ends where the view does (the road bends out of the frame) has no edge there
         seen_row = visible[row]
         ok_l = left > 1 and seen_row[left - 2] and _follows(hist_l, left, p.jump_m * k, p.step_m * k)
@@ -339,5 +356,11 @@ def _centre_paint(bright: np.ndarray, bev: BirdsEye, scan: RoadScan, p: RoadEdge
     uv = bev.ground_to_bev(np.column_stack([mid, scan.y[both]]))
     band = max(1, int(round(p.paint_band_m * p.px_per_m)))
     w = bright.shape[1]
-    hits = [bright[int(v), max(0, int(u) - band): min(w, int(u) + band + 1)].any() for u, v in uv]
-    return float(np.mean(hits))
+    u, v = uv[:, 0].astype(int), uv[:, 1].astype(int)  # truncated, as int() does
+    lo = np.clip(u - band, 0, w)
+    hi = np.maximum(np.clip(u + band + 1, 0, w), lo)
+    # paint in each row's band [lo, hi): a difference of the rows' running sums
+    runs = np.zeros((len(v), w + 1), np.int32)
+    np.cumsum(bright[v], axis=1, out=runs[:, 1:])
+    rows = np.arange(len(v))
+    return float(np.mean(runs[rows, hi] - runs[rows, lo] > 0))
