@@ -41,7 +41,9 @@ class AutoParams:
     lanes_above: float = 0.7
     beside_road: float = 0.6  # ... and this share of a band beside one of its lines is road (another lane)
     settled_below: float = 0.1  # a road whose share is below this is looked at ...
-    settled_every: int = 4  # ... every this many frames
+    settled_every: int = 8  # ... every this many frames (a quarter second at 30 frames/s: a highway
+    # is still noticed within about 2 s, and the paint method, which costs about as much as the
+    # carriageway again, runs on one frame in eight)
 
     @classmethod
     def published(cls) -> "AutoParams":
