@@ -307,11 +307,17 @@ def _verge_colour(scan, near_m: float) -> np.ndarray | None:
     rows = np.flatnonzero(scan.ok_l & scan.ok_r & (scan.y < near_m - 0.5))
     if len(rows) < 4:
         return None
-    samples = []
-    for i in rows[:: max(1, len(rows) // 12)]:
-        for x0, x1 in ((scan.edge_l[i] - 1.4, scan.edge_l[i] - 0.4), (scan.edge_r[i] + 0.4, scan.edge_r[i] + 1.4)):
-            _, vis, lab = scan.region(x0, x1, scan.y[i] - 0.05, scan.y[i] + 0.05, lab=True)
-            samples.append(lab[vis])
+    rows = rows[:: max(1, len(rows) // 12)]
+    # a box each side of each row: its pixel bounds in one step, as RoadScan.region reckons them
+    x_lo = np.concatenate([scan.edge_l[rows] - 1.4, scan.edge_r[rows] + 0.4])
+    x_hi = np.concatenate([scan.edge_l[rows] - 0.4, scan.edge_r[rows] + 1.4])
+    y = np.concatenate([scan.y[rows], scan.y[rows]])
+    u0, v1 = scan.bev.ground_to_bev(np.column_stack([x_lo, y - 0.05])).T
+    u1, v0 = scan.bev.ground_to_bev(np.column_stack([x_hi, y + 0.05])).T
+    h, w = scan.road.shape
+    u0, u1 = np.clip(np.floor(u0), 0, w).astype(int), np.clip(np.ceil(u1), 0, w).astype(int)
+    v0, v1 = np.clip(np.floor(v0), 0, h).astype(int), np.clip(np.ceil(v1), 0, h).astype(int)
+    samples = [scan.lab[a:b, c:d][scan.visible[a:b, c:d]] for a, b, c, d in zip(v0, v1, u0, u1)]
     px = np.concatenate(samples) if samples else np.zeros((0, 3))
     return np.median(px, axis=0) if len(px) >= 10 else None
 
@@ -374,8 +380,7 @@ def _dead_end(scan, group: np.ndarray, beyond: np.ndarray, view: np.ndarray, p: 
     h, w = scan.road.shape
     uv = np.rint(scan.bev.ground_to_bev(np.column_stack([edge, scan.y[group]]))).astype(int)  # each row's edge pixel
     ends, on, goes_on = [], 0, 0
-    for u, v in zip(np.clip(uv[:, 0], 0, w - 1), np.clip(uv[:, 1], 0, h - 1)):
-        kind, reach = _row_reach(scan, int(u), int(v), sgn, verge, p)
+    for kind, reach in _row_reaches(scan, np.clip(uv[:, 0], 0, w - 1), np.clip(uv[:, 1], 0, h - 1), sgn, verge, p):
         if kind == "end":
             ends.append(reach)
         elif kind == "on":
@@ -405,20 +410,44 @@ def _dead_end(scan, group: np.ndarray, beyond: np.ndarray, view: np.ndarray, p: 
     return True
 
 
-def _row_reach(scan, u: int, v: int, sgn: float, verge: np.ndarray, p: ScanJunctionParams):
-    """How far the road of bird's-eye row v goes past its edge at column u (metres), outwards to
-    side sgn: ("end", m) where the verge's own ground follows it for `end_seen_m`; ("on", m)
-    where road runs to the view's edge (within 0.5 m of the last ground seen); ("unknown", 0)
-    otherwise. Things that are neither road nor verge (a barrier, its shadow) are looked past,
-    not taken for the end."""
-    b = scan.bev
-    cols = slice(u, None) if sgn > 0 else slice(u, None, -1)
-    road, vis = scan.road[v, cols], scan.visible[v, cols]
-    d = np.abs(scan.lab[v, cols] - verge)
-    verge_px = vis & ~road & (d[:, 0] < 30) & (d[:, 1] < 12) & (d[:, 2] < 12)
-    seen = np.flatnonzero(vis)
-    if len(seen) == 0:
-        return "unknown", 0.0
+def _row_reaches(scan, us: np.ndarray, vs: np.ndarray, sgn: float, verge: np.ndarray, p: ScanJunctionParams):
+    """How far the road of each bird's-eye row vs[i] goes past its edge at column us[i] (metres),
+    outwards to side sgn: ("end", m) where the verge's own ground follows it for `end_seen_m`;
+    ("on", m) where road runs to the view's edge (within 0.5 m of the last ground seen);
+    ("unknown", 0) otherwise. Things that are neither road nor verge (a barrier, its shadow) are
+    looked past, not taken for the end. All rows at once: row j of each array is the j-th pixel
+    outwards from the edge."""
+    h, w = scan.road.shape
+    k = scan.bev.px_per_m[0]
+    n = max(2, int(round(p.end_seen_m * k)))
+    cols = us.astype(int)[:, None] + (1 if sgn > 0 else -1) * np.arange(w)[None, :]
+    inside = (cols >= 0) & (cols < w)
+    cols = np.clip(cols, 0, w - 1)
+    rows = vs.astype(int)[:, None]
+    road, vis = scan.road[rows, cols] & inside, scan.visible[rows, cols] & inside
+    d = np.abs(scan.lab[rows, cols] - verge)
+    verge_px = vis & ~road & (d[..., 0] < 30) & (d[..., 1] < 12) & (d[..., 2] < 12)
+    # the first stretch of n verge pixels in a row starts where the road has ended
+    runs = np.zeros((len(cols), w + 1), np.int32)
+    np.cumsum(verge_px, axis=1, out=runs[:, 1:])
+    full = (runs[:, n:] - runs[:, :-n]) == n
+    road_vis = road & vis
+    out = []
+    for i in range(len(cols)):
+        seen = np.flatnonzero(vis[i])
+        if len(seen) == 0:
+            out.append(("unknown", 0.0))
+            continue
+        road_at = np.flatnonzero(road_vis[i])
+        start = np.flatnonzero(full[i])
+        if len(start):
+            before = road_at[road_at < start[0]]
+            out.append(("end", float(before[-1] + 1) / k) if len(before) else ("unknown", 0.0))
+        elif len(road_at) and int(seen[-1]) - road_at[-1] <= 0.5 * k:
+            out.append(("on", float(road_at[-1]) / k))
+        else:
+            out.append(("unknown", 0.0))
+    return out
     last_seen = int(seen[-1])
     k = b.px_per_m[0]
     n = max(2, int(round(p.end_seen_m * k)))
