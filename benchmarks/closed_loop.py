@@ -38,9 +38,14 @@ SHARED_MAPS = Path(__file__).resolve().parents[2] / "shared" / "via" / "maps"
 TARGET = {"offroad": 0, "stops": 1.0, "turns": 0.95, "cte_mean": 0.10}
 
 
-def via_maps() -> list[str]:
-    """VIA's own default maps beside the project, when ../shared is there."""
-    return [str(p) for p in sorted(SHARED_MAPS.glob("*.json"))] if SHARED_MAPS.is_dir() else []
+def via_maps(folder: Path = SHARED_MAPS) -> list[str]:
+    """VIA's own default maps in `folder` (beside the project: ../shared/via/maps); none, with a
+    line on stderr saying so, when it is not there (a checkout elsewhere: pass --via-maps)."""
+    if not folder.is_dir():
+        print(f"closed_loop: VIA's own maps not found at {folder}: their rows are skipped (--via-maps DIR)",
+              file=sys.stderr)
+        return []
+    return [str(p) for p in sorted(folder.glob("*.json"))]
 
 
 def _track(name: str, style: str):
@@ -116,6 +121,8 @@ def main() -> None:
     ap.add_argument("--first-seed", type=int, default=0)
     ap.add_argument("--no-bundled", action="store_true", help="skip the bundled and VIA's own maps")
     ap.add_argument("--tracks", nargs="+", help="only these (bundled names, map files or seedN)")
+    ap.add_argument("--via-maps", type=Path, default=SHARED_MAPS,
+                    help=f"folder of VIA's own maps driven in its style (default {SHARED_MAPS})")
     ap.add_argument("--modes", nargs="+", choices=["lockstep", "realtime"], default=["lockstep"])
     ap.add_argument("--jobs", type=int, default=1, help="tracks driven at once (real time: keep 1)")
     ap.add_argument("--random-looks", action="store_true", help="randomise road and scenery colours (seeded); "
@@ -141,7 +148,7 @@ def main() -> None:
     summary = {}
     all_rows = []
     for style in a.style:
-        maps = [] if a.no_bundled else BUNDLED + (via_maps() if style == "via" else [])
+        maps = [] if a.no_bundled or a.tracks else BUNDLED + (via_maps(a.via_maps) if style == "via" else [])
         names = a.tracks or maps + [f"seed{s}" for s in range(a.first_seed, a.first_seed + a.seeds)]
         jobs = [(n, m, str(a.out) if a.out else None, lk == "random", style, d, sets)
                 for lk in looks for d, sets in drivers for m in a.modes for n in names]
