@@ -19,6 +19,7 @@ from collections import deque
 
 import numpy as np
 
+from signlane.angles import wrap_pi
 from signlane.types import LaneEstimate
 
 
@@ -53,7 +54,7 @@ class RoadHeading:
         if len(recent) < self.min_samples or recent[-1][0] - recent[0][0] < self.min_span_m:
             return None
         # each against the car's heading now, wrapped to (-pi, pi]: no seam inside the median
-        rel = (np.array([a for _, a in recent]) - car_heading + math.pi) % (2 * math.pi) - math.pi
+        rel = wrap_pi(np.array([a for _, a in recent]) - car_heading)
         mid = float(np.median(rel))
         # a road that turned inside the window (a lane shift or a bend just before the junction)
         # has no one direction: say nothing, rather than a median of two roads (VIA-style seed 13:

@@ -34,6 +34,7 @@ import cv2
 import numpy as np
 from scipy.interpolate import make_interp_spline
 
+from signlane.angles import wrap_pi
 from signlane.camera import Camera
 from signlane.lanes import register
 from signlane.lanes.geometry import DEFAULT_LANE_WIDTH_M, Boundary, camera_for, estimate_from_fits, fit_boundary
@@ -241,7 +242,7 @@ def _angle(a, b, m_per_px) -> float:
 def _turn(pts: list, new, m_per_px) -> float:
     """|Change of direction| (rad) from the last lane vector to the one ending at `new`."""
     d = _angle(pts[-1], new, m_per_px) - _angle(pts[-2], pts[-1], m_per_px)
-    return abs((d + math.pi) % (2 * math.pi) - math.pi)
+    return abs(wrap_pi(d))
 
 
 def _trace(view: _View, p: VectorSplineParams):

@@ -12,6 +12,7 @@ from typing import Callable
 
 import numpy as np
 
+from signlane.angles import wrap_pi
 from signlane.world.tiles import Port, Tile
 from signlane.world.track import Track
 
@@ -149,7 +150,7 @@ class Route:
         lane = self.lane[i] * (1 - t) + self.lane[j] * t
         right = self.right[i] * (1 - t) + self.right[j] * t
         right /= max(float(np.hypot(*right)), 1e-12)
-        heading = self.heading[i] + t * _wrap(self.heading[j] - self.heading[i])
+        heading = self.heading[i] + t * wrap_pi(self.heading[j] - self.heading[i])
         p = lane + lateral_m * right
         return Pose(float(p[0]), float(p[1]), float(heading - heading_offset))
 
@@ -211,9 +212,6 @@ class Route:
                 best = (dist, float(self.s[a] + t * ds), float(np.dot(p - q, right / np.hypot(*right))))
         return best[1], best[2]
 
-
-def _wrap(a: float) -> float:
-    return (a + math.pi) % (2 * math.pi) - math.pi
 
 
 @dataclass(frozen=True)

@@ -17,6 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from signlane.angles import wrap_pi
+
 SIDES = {"N": (0, 1), "E": (1, 0), "S": (0, -1), "W": (-1, 0)}
 SIDE_OF_STEP = {v: k for k, v in SIDES.items()}
 OPPOSITE = {"N": "S", "S": "N", "E": "W", "W": "E"}
@@ -201,7 +203,7 @@ def junction_path(tile_id: int, a: tuple[tuple[int, int], str], b: tuple[tuple[i
     centre = start + db * r
     a0 = math.atan2(*(start - centre)[::-1])
     a1 = math.atan2(*(end - centre)[::-1])
-    d = (a1 - a0 + math.pi) % (2 * math.pi) - math.pi  # the quarter turn, either way round
+    d = wrap_pi(a1 - a0)  # the quarter turn, either way round
     return join([_line(pa, start), arc(centre, r, a0, a0 + d), _line(end, pb)])
 
 

@@ -1,12 +1,12 @@
 """Ground truth of a rendered frame: masks, ego-lane polylines, pose in lane, signs, junction."""
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
 
+from signlane.angles import wrap_pi
 from signlane.camera import Camera
 from signlane.world.art import SIGN_NAMES
 from signlane.world.objects import DrawnObject
@@ -75,9 +75,6 @@ class GroundTruth:
         return out
 
 
-def _wrap(a: float) -> float:
-    return (a + math.pi) % (2 * math.pi) - math.pi
-
 
 def compute_truth(scene, pose: Pose, camera: Camera, paint_ids: np.ndarray, drawn: list[DrawnObject],
                   route: Route | None, s_hint: float | None) -> GroundTruth:
@@ -89,7 +86,7 @@ def compute_truth(scene, pose: Pose, camera: Camera, paint_ids: np.ndarray, draw
         return GroundTruth(camera, pose, marking, drivable, empty, empty, empty, signs=signs, distractors=others)
     s, lateral = route.project(pose.x, pose.y, s_hint)
     lw = route.track.style.lane_width
-    heading = _wrap(route.pose_at(s).heading - pose.heading)
+    heading = wrap_pi(route.pose_at(s).heading - pose.heading)
     idx = route.ahead(s - 2.0, LOOKAHEAD_M)
     step = max(1, int(POLYLINE_STEP_M / max(route.length / len(route.s), 1e-6)))
     idx = idx[::step]
