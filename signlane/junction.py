@@ -417,7 +417,7 @@ def _row_reaches(scan, us: np.ndarray, vs: np.ndarray, sgn: float, verge: np.nda
     ("unknown", 0) otherwise. Things that are neither road nor verge (a barrier, its shadow) are
     looked past, not taken for the end. All rows at once: row j of each array is the j-th pixel
     outwards from the edge."""
-    h, w = scan.road.shape
+    w = scan.road.shape[1]
     k = scan.bev.px_per_m[0]
     n = max(2, int(round(p.end_seen_m * k)))
     cols = us.astype(int)[:, None] + (1 if sgn > 0 else -1) * np.arange(w)[None, :]
@@ -448,16 +448,3 @@ def _row_reaches(scan, us: np.ndarray, vs: np.ndarray, sgn: float, verge: np.nda
         else:
             out.append(("unknown", 0.0))
     return out
-    last_seen = int(seen[-1])
-    k = b.px_per_m[0]
-    n = max(2, int(round(p.end_seen_m * k)))
-    # the first stretch of n verge pixels in a row starts where the road has ended
-    run = np.convolve(verge_px.astype(np.int32), np.ones(n, np.int32), "valid")
-    start = np.flatnonzero(run == n)
-    road_at = np.flatnonzero(road & vis)
-    if len(start):
-        before = road_at[road_at < start[0]]
-        return ("end", float(before[-1] + 1) / k) if len(before) else ("unknown", 0.0)
-    if len(road_at) and last_seen - road_at[-1] <= 0.5 * k:
-        return "on", float(road_at[-1]) / k
-    return "unknown", 0.0

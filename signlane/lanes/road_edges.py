@@ -29,6 +29,7 @@ from signlane.types import LaneEstimate
 
 NAME = "road-edges"
 _OPEN = np.ones((3, 3), np.uint8)
+_GREY = ((113, 113), (143, 143))  # colourless: |a|, |b| < 16 in uint8 Lab (a and b bounds)
 
 
 @dataclass(frozen=True)
@@ -115,7 +116,7 @@ def road_mask(bev_bgr: np.ndarray, visible: np.ndarray, p: RoadEdgesParams,
     # paint and kerbs belong to the carriageway, and so does grey asphalt lighter than the patch
     # ahead by more than the tolerance (a mottled road: else its light blotches are holes that
     # stop the scan well inside the road)
-    lighter = cv2.inRange(lab8, _box([math.ceil(r[0] + p.lab_tol[0]), 113, 113]), (255, 143, 143))  # grey: |a|, |b| < 16
+    lighter = cv2.inRange(lab8, (min(255, math.ceil(r[0] + p.lab_tol[0])),) + _GREY[0], (255,) + _GREY[1])
     # (lines too: a yellow centre line is not grey, and would split the carriageway in two)
     either = cv2.bitwise_or(cv2.bitwise_or(road, lighter), bright)
     road = cv2.morphologyEx(cv2.bitwise_and(either, visible.view(np.uint8)), cv2.MORPH_OPEN, _OPEN) > 0
@@ -134,9 +135,8 @@ def _lines(lab8: np.ndarray, p: RoadEdgesParams) -> np.ndarray:
     k = max(3, int(round(p.line_max_m * p.px_per_m)) | 1)
     ridge = cv2.morphologyEx(np.ascontiguousarray(lab8[..., 0]), cv2.MORPH_TOPHAT, np.ones((1, k), np.uint8))
     lines = cv2.compare(ridge, p.bright_l, cv2.CMP_GT)
-    # |a| < 16 and (|b| < 16 or b > 20), in uint8 Lab
-    grey = cv2.inRange(lab8, (0, 113, 113), (255, 143, 143))
-    yellow = cv2.inRange(lab8, (0, 113, 149), (255, 143, 255))
+    grey = cv2.inRange(lab8, (0,) + _GREY[0], (255,) + _GREY[1])
+    yellow = cv2.inRange(lab8, (0, _GREY[0][0], 149), (255, _GREY[1][0], 255))  # b > 20
     return cv2.bitwise_and(lines, cv2.bitwise_or(grey, yellow))
 
 

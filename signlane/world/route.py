@@ -213,7 +213,6 @@ class Route:
         return best[1], best[2]
 
 
-
 @dataclass(frozen=True)
 class Pose:
     """Car pose in world metres; heading radians CCW from +x (east)."""

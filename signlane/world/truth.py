@@ -75,7 +75,6 @@ class GroundTruth:
         return out
 
 
-
 def compute_truth(scene, pose: Pose, camera: Camera, paint_ids: np.ndarray, drawn: list[DrawnObject],
                   route: Route | None, s_hint: float | None) -> GroundTruth:
     marking = cv2.LUT(paint_ids, _MARKING_LUT)
