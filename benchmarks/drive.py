@@ -6,6 +6,8 @@ a GIL); the client sends pre-rendered VIA messages (640x480 JPEG, base64, string
 consecutive drive, so lane tracking behaves as on the road.
   lockstep: send a frame, wait for its answer, repeat (what `signlane sim --lockstep` does);
             latency is that round trip, fps = frames / time.
+  30 fps:   the same round trip with frames sent at 30 frames/s, as VIA sends them (the sign
+            worker of the real-time server then runs between frames, not against the next one).
   flood:    send every frame back to back without waiting (what VIA does when the server is
             slower than the simulator); answers/s and the share of frames actually driven (the
             rest were answered at once with the latest command).
@@ -43,6 +45,7 @@ from signlane.world.sampling import DriveSampler, SamplerConfig
 from signlane.tables import table
 
 BASELINE = "baseline (decode only)"
+PACED_FPS = 30.0  # the paced run's frame rate: VIA's
 
 
 class NullDriver:
@@ -145,6 +148,24 @@ def lockstep(url: str, messages: list[bytes]) -> tuple[list[float], float]:
     return rtt, fps
 
 
+def paced(url: str, messages: list[bytes], fps: float) -> list[float]:
+    """Round-trip ms per frame with frames sent at `fps` (VIA renders at 30 frames/s): a frame,
+    its answer, then a wait for the next tick, so that work the server does between frames (the
+    sign worker on the newest frame) runs in the gaps as it does against the simulator."""
+    rtt = []
+    period = 1.0 / fps
+    with connect(url, max_size=None) as ws:
+        t_next = time.perf_counter()
+        for m in messages:
+            time.sleep(max(0.0, t_next - time.perf_counter()))
+            t0 = time.perf_counter()
+            ws.send(m)
+            json.loads(ws.recv())
+            rtt.append((time.perf_counter() - t0) * 1e3)
+            t_next = max(t_next + period, time.perf_counter())  # a late answer does not queue a burst
+    return rtt
+
+
 def flood(url: str, messages: list[bytes]) -> float:
     """Answers/s when every frame is sent without waiting for answers."""
     with connect(url, max_size=None) as ws:
@@ -193,6 +214,7 @@ def measure(name: str, method: str | None, signs: bool, messages: list[bytes], r
                 base_runs.append(lockstep(base_url, messages))
                 runs.append(lockstep(url, messages))
             answers_s = statistics.median(flood(url, messages) for _ in range(repeats))
+            at_fps = [paced(url, messages, PACED_FPS) for _ in range(repeats)]
             watched = []  # (no viewers, N viewers) lockstep runs back to back, their order alternating
             long = (messages * (1 + viewer_frames // len(messages)))[:viewer_frames]
             for k in range(repeats if viewers and method else 0):
@@ -215,6 +237,8 @@ def measure(name: str, method: str | None, signs: bool, messages: list[bytes], r
             "ratio": statistics.median(float(np.median(r) / np.median(b)) for (r, _), (b, _) in zip(runs, base_runs)),
             "base": statistics.median(float(np.median(b)) for b, _ in base_runs),
             "fps": statistics.median(f for _, f in runs), "flood": answers_s,
+            "paced_median": statistics.median(float(np.median(r)) for r in at_fps),
+            "paced_p99": statistics.median(float(np.percentile(r, 99)) for r in at_fps),
             # lockstep never skips, so every skip happened during the floods
             "driven": 100.0 * (1 - srv.totals["skipped"] / flood_frames),
             # inside the server over the whole run (lockstep and floods): its own split of the time
@@ -266,9 +290,10 @@ def main() -> None:
         rows.append(measure(f"{default} + signs", default, True, messages, args.repeats, base_url, args.viewers,
                             args.viewer_frames))
     print(f"640x480 frames, {kb:.0f} KB per message, {args.frames} frames x {args.repeats} repeats (medians)")
-    print(table(["server", "answer median ms", "answer p99 ms", "decode med/p99", "perceive med/p99",
+    print(table(["server", "answer median ms", "answer p99 ms", "30 fps med/p99", "decode med/p99", "perceive med/p99",
                  "server answer med/p99", "base ms", "x base", "lockstep fps", "flood ans/s", "driven %"],
-                [[r["name"], f"{r['median']:.1f}", f"{r['p99']:.1f}", f"{r['decode_median']:.1f} / {r['decode_p99']:.1f}",
+                [[r["name"], f"{r['median']:.1f}", f"{r['p99']:.1f}", f"{r['paced_median']:.1f} / {r['paced_p99']:.1f}",
+                  f"{r['decode_median']:.1f} / {r['decode_p99']:.1f}",
                   f"{r['perceive_median']:.1f} / {r['perceive_p99']:.1f}",
                   f"{r['answer_median']:.1f} / {r['answer_p99']:.1f}", f"{r['base']:.1f}", f"{r['ratio']:.2f}",
                   f"{r['fps']:.1f}", f"{r['flood']:.0f}", f"{r['driven']:.0f}"]
@@ -281,7 +306,8 @@ def main() -> None:
     for r in rows:
         if "error" in r:
             print(f"{r['name']}: unavailable: {r['error'][:90]}")
-    print("answer: message in -> answer out at the client (lockstep); decode, perceive and server answer: the "
+    print("answer: message in -> answer out at the client (lockstep: the next frame sent at once); 30 fps: the "
+          "same, frames sent at 30 frames/s as VIA does; decode, perceive and server answer: the "
           "server's own split (median / p99 over the whole run, floods and viewer runs included); base ms: the baseline server timed in the same repeats; x base: median of "
           "per-repeat ratios. "
           "Shared 2-core machine: absolute times are upper bounds.")

@@ -60,6 +60,37 @@ def test_the_recorded_label_is_the_teachers_clean_command_while_the_noisy_one_is
     assert max(abs(a - 0.25) for a in applied) > 0.1
 
 
+class _FakeStudent(_FakeDriver):
+    """A driver with a pilot: it sends the student's steering; planner_command is the teacher's."""
+    pilot = object()
+
+    def __init__(self, student):
+        self.student = student  # t -> the student's steering
+
+    def step(self, telemetry, now=None):
+        perception, teacher = super().step(telemetry, now)
+        self.planner_command = teacher
+        return perception, Command(self.student(now), teacher.throttle, teacher.state)
+
+
+def test_dagger_the_student_steers_until_it_strays_then_the_teacher_for_hold_s_and_labels_all():
+    from signlane.sim.protocol import Telemetry
+    from signlane.sim.teacher import Takeover, TakeoverParams
+    rec = _Recorder()
+    # the student agrees with the teacher (0.25) but strays to -0.2 between 1.0 and 1.5 s
+    drv = TeacherRecorder(_FakeStudent(lambda t: -0.2 if 1.0 <= t < 1.5 else 0.2), rec,
+                          takeover=Takeover(TakeoverParams(margin=0.25, hold_s=1.0)))
+    tel = Telemetry(0.0, 0.0, 5.0, np.zeros((48, 64, 3), np.uint8), jpeg=b"\xff\xd8")
+    applied = {i: drv.step(tel, now=i / 30)[1].steering for i in range(120)}
+    assert applied[10] == pytest.approx(0.2)  # the student's, within the margin
+    assert applied[30] == pytest.approx(0.25) and applied[70] == pytest.approx(0.25)  # the teacher's from 1.0 s ...
+    assert applied[73] == pytest.approx(0.25) and applied[74] == pytest.approx(0.2)  # ... until 1 s after its last stray frame (1.47 s)
+    assert all(t.steering == 0.25 for _, _, t, _ in rec.rows)  # every label is the teacher's
+    by = [e["steered_by"] for _, _, _, e in rec.rows]
+    assert by.count("teacher") == 44 and rec.rows[10][3]["student"] == pytest.approx(0.2)
+    assert drv.takeover.taken == 44 and drv.takeover.frames == 120
+
+
 # --- augmentation keeps the label true ---------------------------------------------------------
 def test_flip_negates_steering_and_swaps_desire_and_is_its_own_inverse():
     from signlane_train.pilot_data import flip_sample

@@ -80,6 +80,12 @@ def _add_gen_pilot(kinds) -> None:
     pilot.add_argument("--looks", choices=["default", "random", "mixed"], default="mixed",
                        help="scenery colours: the default ones, random (seeded), or mixed: every other seed "
                             "random (default)")
+    pilot.add_argument("--student", type=Path, default=None,
+                       help="DAgger: a pilot ONNX file steers each drive instead of the teacher, which labels "
+                            "every frame and takes the wheel for a second where they disagree (--takeover); "
+                            "use --perturb 0 and train on these drives together with the teacher's")
+    pilot.add_argument("--takeover", type=float, default=0.25,
+                       help="with --student: the steering difference at which the teacher takes over (default 0.25)")
     pilot.add_argument("--workers", type=positive, default=1, help="worker processes, a drive each (default 1)")
     pilot.add_argument("--resume", action="store_true", help="complete an interrupted run in --out")
 
@@ -104,11 +110,13 @@ def _gen(args) -> int:
         m = generate_signs(args.out, args.n, args.seed, crop=args.crop, workers=args.workers,
                            resume=args.resume, preview=args.preview, style=args.style or "painted")
     elif args.kind == "pilot":
+        from signlane.onnx_model import ModelError
         from signlane_data.pilot import generate_pilot_drives
         try:
             m = generate_pilot_drives(args.out, args.n, args.first_seed, tuple(args.style), args.seconds,
-                                      args.perturb, args.every, args.looks, workers=args.workers, resume=args.resume)
-        except ValueError as e:
+                                      args.perturb, args.every, args.looks, workers=args.workers, resume=args.resume,
+                                      student=args.student or "", takeover=args.takeover)
+        except (ValueError, ModelError) as e:
             raise UserError(str(e)) from None
     else:
         from signlane_data.drive import generate_drive

@@ -62,6 +62,7 @@ class DriveStack:
         from signlane.pilot import PilotSteering, from_config
         model = from_config(self.config.pilot)
         self.pilot = PilotSteering(model, self.config.pilot.junctions) if model is not None else None
+        self.planner_command: Command | None = None  # the last frame's command before the pilot steered
         self.seq = 0
 
     @property
@@ -95,6 +96,8 @@ class DriveStack:
             ps.forget_tracks()
         t4 = time.perf_counter()
         timing["control"] = (t4 - t3) * 1e3
+        # what the planner itself would send: the label of a drive the pilot steers (DAgger)
+        self.planner_command = Command(steering, throttle, state)
         if self.pilot is not None:
             steering = self.pilot.steer(small, state, steering)
             timing["pilot"] = (time.perf_counter() - t4) * 1e3

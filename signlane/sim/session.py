@@ -75,24 +75,31 @@ def _loop_length(track: Track) -> float | None:
         return None
 
 
-def drive_meta(track: Track, sim_config: SimConfig, noise=None, every: int = 1) -> dict:
-    """What a recording's manifest says of the drive: track, style, looks, frame rate, noise."""
+def drive_meta(track: Track, sim_config: SimConfig, noise=None, every: int = 1, student: dict | None = None) -> dict:
+    """What a recording's manifest says of the drive: track, style, looks, frame rate, noise, and
+    the student that steered it (DAgger), if one did."""
     from dataclasses import asdict
     return {"track": track.name, "source": getattr(track, "source", ""), "style": track.style.kind,
             "looks": {"random": bool(sim_config.random_looks), "seed": int(sim_config.looks_seed)},
             "effects": sim_config.effects, "fps": sim_config.fps, "size": [sim_config.width, sim_config.height],
-            "record_every": int(every), "perturb": asdict(noise.p) if noise is not None else None}
+            "record_every": int(every), "perturb": asdict(noise.p) if noise is not None else None,
+            "student": student}
 
 
-def _inprocess(sim, driver, progress, record, config, meta, noise, every) -> dict:
-    """run_inprocess, recording the teacher's drive where asked."""
+def _inprocess(sim, driver, progress, record, config, meta, noise, every, takeover) -> dict:
+    """run_inprocess, recording the teacher's drive where asked (the student's, when the driver
+    has a pilot: signlane/sim/teacher.py); the report counts the frames the teacher took over."""
     if record is None:
         return run_inprocess(sim, driver, progress)
     from signlane.sim.drive_record import Recorder
     from signlane.sim.teacher import TeacherRecorder
     recorder = Recorder(record, config, meta)
     try:
-        return run_inprocess(sim, TeacherRecorder(driver, recorder, noise, every), progress)
+        teacher = TeacherRecorder(driver, recorder, noise, every, takeover)
+        rep = run_inprocess(sim, teacher, progress)
+        if teacher.takeover is not None:
+            rep["takeover_share"] = round(teacher.takeover.taken / max(teacher.takeover.frames, 1), 4)
+        return rep
     finally:
         recorder.close()
 
@@ -100,13 +107,15 @@ def _inprocess(sim, driver, progress, record, config, meta, noise, every) -> dic
 def run_session(track: Track, sim_config: SimConfig, out: Path | None, config: Config | None = None,
                 url: str | None = None, lockstep: bool = True, with_driver: bool = False,
                 video: bool = False, show_progress: bool = True, server_options=None,
-                record: Path | None = None, noise=None, record_every: int = 1) -> dict:
+                record: Path | None = None, noise=None, record_every: int = 1, takeover=None) -> dict:
     """Drive one run; returns the report (also written to out/report.json with out/path.png).
     server_options: the in-process drive server's (with_driver; default a free port on 127.0.0.1
     with the monitor on); its sync_signs follows `lockstep`.
     record: a folder for the drive recording (signlane/sim/drive_record.py), made by the
     in-process driver (every `record_every`-th frame, the applied steering perturbed by `noise`,
-    a signlane.sim.teacher.SteeringNoise) or by the drive server (with_driver)."""
+    a signlane.sim.teacher.SteeringNoise) or by the drive server (with_driver). With a pilot in
+    `config` the in-process recording is a DAgger drive: the pilot steers where `takeover` (a
+    signlane.sim.teacher.Takeover; default margins when None) lets it, the teacher labels."""
     if record is not None and url is not None:
         raise ValueError("--record: a remote drive server records with its own `signlane drive --record`")
     if noise is not None and (with_driver or url is not None):
@@ -146,8 +155,14 @@ def run_session(track: Track, sim_config: SimConfig, out: Path | None, config: C
             if url is None and not with_driver:
                 from signlane.sim.driver import Driver
                 with Driver(config, sync_signs=lockstep) as driver:
-                    rep = _inprocess(sim, driver, progress, record, config, drive_meta(track, sim_config, noise,
-                                                                                       record_every), noise, record_every)
+                    student = None
+                    if driver.pilot is not None:
+                        from dataclasses import asdict
+                        from signlane.sim.teacher import TakeoverParams
+                        student = {"model": config.pilot.model, "junctions": config.pilot.junctions,
+                                   "takeover": asdict(takeover.p if takeover is not None else TakeoverParams())}
+                    meta = drive_meta(track, sim_config, noise, record_every, student)
+                    rep = _inprocess(sim, driver, progress, record, config, meta, noise, record_every, takeover)
                     rep["decisions"] = driver.behaviour.decisions  # what the driver saw at each junction
             elif with_driver:
                 from dataclasses import replace

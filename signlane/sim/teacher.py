@@ -7,6 +7,13 @@ recordings shifted the view): the car drifts off the centre, the teacher's perce
 its label says how to steer back, while the label itself stays the teacher's clean command.
 Noise pauses through planned junctions and while the car is slow, where a push would only
 teach a crash into the kerb the teacher never makes.
+
+DAgger: a student (a driver configured with a pilot model) steers the car instead, so the
+recording holds the places the student's own mistakes lead to, each labelled with what the
+teacher (the planner and lane follower in the same stack, which still sees every frame) would
+have sent. Where the two disagree by more than a takeover margin, the teacher drives for a
+moment (`Takeover`): the car stays near the lane, so the teacher's labels stay ones it can
+give (a car already on the verge shows no lane to label from).
 """
 from __future__ import annotations
 
@@ -57,26 +64,62 @@ class SteeringNoise:
         return amp * math.sin(math.pi * u)
 
 
-class TeacherRecorder:
-    """A Driver that records each frame it drives (every `every`-th) into `recorder`, with its
-    own command as the label and the perturbed one applied; steps like the Driver it wraps."""
+@dataclass(frozen=True)
+class TakeoverParams:
+    margin: float = 0.25  # the teacher takes the wheel when the student's steering is this far from its own ...
+    hold_s: float = 1.0  # ... and keeps it this long after the last such frame
 
-    def __init__(self, driver, recorder: Recorder, noise: SteeringNoise | None = None, every: int = 1):
+
+class Takeover:
+    """Who steers a DAgger frame: the student, unless it strays from the teacher by more than
+    the margin; then the teacher, until hold_s after the last straying frame."""
+
+    def __init__(self, params: TakeoverParams):
+        self.p = params
+        self._until = -math.inf
+        self.frames = self.taken = 0
+
+    def teacher_steers(self, t: float, student: float, teacher: float) -> bool:
+        self.frames += 1
+        if abs(student - teacher) > self.p.margin:
+            self._until = t + self.p.hold_s
+        taken = t < self._until
+        self.taken += taken
+        return taken
+
+
+class TeacherRecorder:
+    """A Driver that records each frame it drives (every `every`-th) into `recorder`, with the
+    teacher's command as the label and the perturbed one applied; steps like the Driver it wraps.
+    With a driver that has a pilot (the student), the student's steering is applied where
+    `takeover` lets it (DAgger), the teacher's (the stack's planner_command) otherwise."""
+
+    def __init__(self, driver, recorder: Recorder, noise: SteeringNoise | None = None, every: int = 1,
+                 takeover: Takeover | None = None):
         self.driver, self.recorder, self.noise = driver, recorder, noise
         self.every = max(1, int(every))
         self.frames = 0
+        self.student = getattr(driver, "pilot", None) is not None
+        self.takeover = takeover or (Takeover(TakeoverParams()) if self.student else None)
 
     def step(self, telemetry, now: float | None = None):
-        perception, teacher = self.driver.step(telemetry, now)
+        perception, sent = self.driver.step(telemetry, now)
         t = now if now is not None else perception.frame.t
+        teacher = self.driver.planner_command if self.student else sent
+        extra = {}
+        steering = teacher.steering
+        if self.student:
+            by_teacher = self.takeover.teacher_steers(t, sent.steering, teacher.steering)
+            steering = teacher.steering if by_teacher else sent.steering
+            extra = {"student": round(float(sent.steering), 4), "steered_by": "teacher" if by_teacher else "student"}
         add = self.noise.step(t, teacher.state, telemetry.speed_mps) if self.noise is not None else 0.0
-        applied = Command(float(np.clip(teacher.steering + add, -1.0, 1.0)), float(np.clip(teacher.throttle, 0, 1)),
+        applied = Command(float(np.clip(steering + add, -1.0, 1.0)), float(np.clip(teacher.throttle, 0, 1)),
                           teacher.state)
         if self.frames % self.every == 0:
             frame_id = f"{self.frames:06d}"
             self.recorder.write(frame_id, 0, telemetry.jpeg, telemetry, perception, applied,
                                 Command(float(np.clip(teacher.steering, -1, 1)), applied.throttle, teacher.state),
-                                {"noise": round(float(add), 4)})
+                                {"noise": round(float(add), 4), **extra})
         self.frames += 1
         return perception, applied
 
