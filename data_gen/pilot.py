@@ -10,7 +10,8 @@ manifest was cut short: --resume drives it again.
 
 With `student` (a pilot ONNX file) each drive is a DAgger drive: the student steers (the teacher
 takes over for a moment where they disagree by more than `takeover`), the teacher labels every
-frame; record them on the teacher drives' own seeds and train on both sets together.
+frame; record them on seeds of their own (--first-seed after the teacher drives': more tracks)
+and train on both sets together.
 
 Train on other seeds than the closed-loop acceptance's (benchmarks/closed_loop.py: 0-19); the
 default first seed is 1000.
@@ -105,12 +106,14 @@ def generate_pilot_drives(out: str | Path, n: int, first_seed: int = 1000, style
         return manifest
     job = PilotDriveJob(str(out), names, float(seconds), float(perturb), int(every), float(fps), student,
                         float(takeover))
-    run_indexed(len(names), job, workers, desc="student drives" if student else "teacher drives", done_fn=job.done,
-                chunk=1)
+    scores = run_indexed(len(names), job, workers, desc="student drives" if student else "teacher drives",
+                         done_fn=job.done, chunk=1)
     drives = []
     for i in range(len(names)):
         m = json.loads((job.folder(i) / "manifest.json").read_text())
-        drives.append({"folder": f"{DRIVES}/{job.folder(i).name}", "frames": m["counts"]["frames"], **m["drive"]})
+        score = {k: v for k, v in scores.get(i, {}).items() if k != "folder"}  # none for drives done before a resume
+        drives.append({"folder": f"{DRIVES}/{job.folder(i).name}", "frames": m["counts"]["frames"], **m["drive"],
+                       **score})
     counts = {"drives": len(drives), "frames": sum(d["frames"] for d in drives)}
     manifest = write_manifest(out, "pilot", first_seed, counts, config, drives=drives)
     log.info("%s: %d drives, %d frames", out, counts["drives"], counts["frames"])

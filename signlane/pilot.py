@@ -145,8 +145,10 @@ class PilotFrame:
 
 
 def read_pilot_frames(roots: list[str | Path]) -> list[PilotFrame]:
-    """Every frame of every drive recording under the roots (signlane/sim/drive_record.py), in
-    order; ValueError naming a root with none, a broken recording or a frame without a label."""
+    """Every labelled frame of every drive recording under the roots (signlane/sim/drive_record.py),
+    in order; ValueError naming a root with none, a broken recording or a frame without a label.
+    Frames where the teacher had lost the lane (state "lost") are left out: its steering there only
+    decays toward straight while the car stands, a label that says nothing about the picture."""
     from signlane.sim.drive_record import RecordError, read_recording, recording_folders
     items: list[PilotFrame] = []
     for root in map(Path, roots):
@@ -162,6 +164,8 @@ def read_pilot_frames(roots: list[str | Path]) -> list[PilotFrame]:
             for n, f in enumerate(rec.frames):
                 try:
                     teacher = f.get("teacher") or f["command"]
+                    if teacher.get("state") == "lost":
+                        continue
                     desire = f.get("desire", "straight")
                     items.append(PilotFrame(rec.image_path(f), float(f["steering"]),
                                             desire if desire in DESIRES else "straight",

@@ -2,6 +2,7 @@
 the model contract, and a smoke run recording -> training -> export -> parity -> a closed-loop
 drive -> offline evaluation."""
 import json
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -179,6 +180,22 @@ def test_sim_record_writes_the_drive_layout_with_teacher_desire_and_manifest(pil
     assert abs(f["command"]["steering"] - f["teacher"]["steering"] - f["noise"]) < 2e-4
     from signlane.sim.drive_record import read_recording
     assert len(read_recording(rec).frames) == n  # export-drive's reader takes it as it is
+
+
+def test_frames_where_the_teacher_lost_the_lane_are_not_training_labels(pilot, tmp_path):
+    import shutil
+    from signlane.pilot import read_pilot_frames
+    _, rec, *_ = pilot
+    copy = tmp_path / "rec"
+    shutil.copytree(rec, copy)
+    frames = [json.loads(line) for line in (copy / "drive.jsonl").read_text().splitlines()]
+    assert len(read_pilot_frames([rec])) == len(frames)  # the teacher saw the lane all along
+    for f in frames[10:20]:
+        f["teacher"]["state"] = "lost"
+    (copy / "drive.jsonl").write_text("".join(json.dumps(f) + "\n" for f in frames))
+    kept = read_pilot_frames([copy])
+    assert len(kept) == len(frames) - 10
+    assert {Path(it.image).name for it in kept}.isdisjoint(Path(f["image"]).name for f in frames[10:20])
 
 
 def test_export_matches_torch_and_the_runtime_loads_it(pilot):
