@@ -141,6 +141,40 @@ def test_a_shift_right_adds_right_steering_in_proportion():
     assert shift_sample(img, 0.1, -10.0, gain=1.8)[1] < 0.1 < s
 
 
+def test_a_lateral_move_shows_the_road_from_beside_the_line_and_steers_back():
+    """The warp of the centred frame matches the simulator's frame rendered with the car moved
+    sideways (below the horizon), and the label steers back the way the teacher does."""
+    from signlane.drive.stack import DriveStack
+    from signlane.sim.simulator import SimConfig, Simulator
+    from signlane.world.maps import load_track
+    from signlane.world.route import Pose
+    from signlane_train.pilot_data import AugmentParams, flip_sample, lateral_sample
+    sim = Simulator(load_track("loop_demo", "painted"), SimConfig(image_lag_frames=0))
+    p = sim.vehicle.pose
+    right = np.array([np.sin(p.heading), -np.cos(p.heading)])
+    frames, teacher = {}, {}
+    for d in (0.0, 0.5, -0.5):
+        sim.vehicle.pose = Pose(p.x + d * right[0], p.y + d * right[1], p.heading)
+        sim.observe()
+        frames[d] = sim.last_image.copy()
+        with DriveStack(Config.load(None, ["signs.enabled=false"])) as stack:
+            teacher[d] = stack.drive(frames[d], 5.0, 0.0, 0.0)[1].steering
+    gain = AugmentParams().lateral_gain
+    road = slice(frames[0.0].shape[0] // 2, None)  # below the horizon (row 0.32 h for VIA's camera)
+    for d in (0.5, -0.5):
+        warped, label = lateral_sample(frames[0.0], 0.1, d, gain)
+        moved = np.abs(warped[road].astype(int) - frames[d][road]).mean()
+        unmoved = np.abs(frames[0.0][road].astype(int) - frames[d][road]).mean()
+        assert moved < 0.3 * unmoved, (d, moved, unmoved)
+        assert label == pytest.approx(0.1 - gain * d)
+        assert np.sign(label - 0.1) == np.sign(teacher[d] - teacher[0.0]) != 0  # steer back toward the centre
+        # mirrored, a move right is a move left
+        a = flip_sample(warped, 0.0, "straight")[0]
+        b = lateral_sample(flip_sample(frames[0.0], 0.0, "straight")[0], 0.0, -d, gain)[0]
+        assert np.abs(a[road, 2:-2].astype(int) - b[road, 2:-2]).mean() < 1.0
+    assert np.array_equal(lateral_sample(frames[0.0], 0.0, 0.5, gain)[0][:100], frames[0.0][:100])  # sky stays
+
+
 def test_desire_follows_the_planned_exit_and_picks_the_branch():
     assert desire_of("junction-left") == "left" and desire_of("junction-right") == "right"
     assert desire_of("cruise") == desire_of("stopped") == desire_of("junction-straight") == "straight"

@@ -8,6 +8,12 @@ Augmentations that keep the label true to the picture (`steering_augment`):
 - horizontal shift by dx pixels: for the far road, the view of a car turned by atan(dx / f)
   (f: the camera's focal length in pixels), so the label gains the steering that the teacher's
   pursuit gives for that heading error (`shift_gain` per radian);
+- lateral move by d metres (`lateral_sample`): the road surface seen from a camera d metres to
+  the side, a row-wise shift of the ground below the horizon (a flat-ground homography; the
+  horizon and above stay), so the label gains the steering the teacher's pursuit gives for a car
+  that far off its line (`lateral_gain` per metre). The rotation-only shift above cannot show a
+  car that points along the lane but stands beside its centre: the view the pilot must learn to
+  leave after a junction or a gust;
 - small roll: the heading does not change, nor the label.
 Light and colour changes (albumentations) never touch the label. Frames are decoded once, at
 the cache size, and kept in memory (the input sizes are small).
@@ -26,13 +32,30 @@ import torch
 from torch.utils.data import DataLoader, Dataset
 from tqdm import tqdm
 
+from signlane.camera import VIA_WHEELBASE_M
+from signlane.config import CameraConfig
+from signlane.control import MAX_WHEEL_DEG
 from signlane.onnx_model import InputSpec
 from signlane.pilot import DESIRES, SPLIT_BLOCK, PilotFrame, flip_desire, preprocess_frames, read_pilot_frames
 from signlane.splits import VAL_FRACTION, split_of
 from signlane_train.common import seed_worker
 
 CACHE_SIZE = (160, 120)  # frames are kept at this size (the largest pilot input)
-HFOV_DEG = 75.18  # the camera's horizontal field of view (signlane.config.CameraConfig)
+CAMERA = CameraConfig()  # the camera the recordings come from: VIA's, in both render styles
+HFOV_DEG = CAMERA.hfov_deg
+
+
+def pursuit_lateral_gain(lookahead_m: float = 7.5, wheelbase_m: float = VIA_WHEELBASE_M,
+                         max_wheel_deg: float = MAX_WHEEL_DEG) -> float:
+    """Steering change per metre of the car standing right of its line, for the teacher's pure
+    pursuit (signlane/control.py): kappa = 2 x / ld^2 with x = -d, steering = wheelbase * kappa
+    / max wheel angle, linearised. The default lookahead is the pursuit's at cruise (5 m + 0.5 s
+    x 5 m/s) with the camera's 1.1 m ahead of the axle left out: 0.16 per metre. Measured on the
+    teacher itself (loop_demo's first straight, the car moved +-0.4 and 0.8 m at 5 m/s) it is
+    0.11 per metre on painted roads and 0.23 in VIA's style (road-edges reads the kerbed
+    carriageway's offset larger); one gain between them errs toward the centre on painted roads,
+    where recovery is what the pilot lacks."""
+    return 2.0 * wheelbase_m / (lookahead_m ** 2) / math.radians(max_wheel_deg)
 
 
 def load_frames(items: list[PilotFrame], size: tuple[int, int] = CACHE_SIZE, desc: str = "frames") -> np.ndarray:
@@ -52,6 +75,9 @@ class AugmentParams:
     shift: float = 0.08  # max |dx| as a fraction of the width
     shift_p: float = 0.5
     shift_gain: float = 1.8  # steering per radian of heading error (VIA's car, pursuit at ~5 m)
+    lateral_m: float = 0.6  # max |d| of the lateral move, metres
+    lateral_p: float = 0.5
+    lateral_gain: float = pursuit_lateral_gain()
     roll_deg: float = 2.0
     photometric: bool = True
 
@@ -70,6 +96,25 @@ def shift_sample(image: np.ndarray, steering: float, dx: float, gain: float,
     m = np.float32([[1, 0, dx], [0, 1, 0]])
     out = cv2.warpAffine(image, m, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
     return out, float(np.clip(steering + gain * math.atan(dx / f), -1.0, 1.0))
+
+
+def lateral_sample(image: np.ndarray, steering: float, d_m: float, gain: float,
+                   camera: CameraConfig = CAMERA) -> tuple[np.ndarray, float]:
+    """The frame as seen from d_m metres to the right (the road moves left in view) and the label
+    that steers back: steering - gain * d_m, clamped. A ground point on row v moves by fx d (n.r)
+    / h pixels, n.r = cos(pitch) (v - cy) / fy + sin(pitch) being the ray's depth toward the
+    road (0 at the horizon, which stays put with everything above it)."""
+    h, w = image.shape[:2]
+    cam = camera.camera(w, h)
+    fx, fy, cx, cy = cam.K[0, 0], cam.K[1, 1], cam.K[0, 2], cam.K[1, 2]
+    p = math.radians(camera.pitch_deg)
+    rows = np.arange(h, dtype=np.float32)
+    depth = np.maximum(0.0, math.cos(p) * (rows - cy) / fy + math.sin(p))
+    move = (fx * d_m / camera.height_m * depth).astype(np.float32)  # pixels left, per row
+    map_x = np.arange(w, dtype=np.float32)[None, :] + move[:, None]  # output (u, v) reads input (u + move, v)
+    map_y = np.broadcast_to(rows[:, None], (h, w)).astype(np.float32)
+    out = cv2.remap(image, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    return out, float(np.clip(steering - gain * d_m, -1.0, 1.0))
 
 
 def roll_sample(image: np.ndarray, deg: float) -> np.ndarray:
@@ -97,6 +142,9 @@ def steering_augment(image: np.ndarray, steering: float, desire: str, rng, p: Au
     if p.shift > 0 and rng.random() < p.shift_p:
         image, steering = shift_sample(image, steering, float(rng.uniform(-p.shift, p.shift)) * image.shape[1],
                                        p.shift_gain)
+    if p.lateral_m > 0 and rng.random() < p.lateral_p:
+        image, steering = lateral_sample(image, steering, float(rng.uniform(-p.lateral_m, p.lateral_m)),
+                                         p.lateral_gain)
     if p.roll_deg > 0:
         image = roll_sample(image, float(rng.uniform(-p.roll_deg, p.roll_deg)))
     return image, steering, desire

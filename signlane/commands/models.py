@@ -73,7 +73,7 @@ def _add_train_pilot(kinds, lightning_flags: bool) -> None:
                                          "dropout 0.5, dense 100-50-10-1, MSE, Adam 1e-4, batch 100); --arch small "
                                          "is ours (HSV 96x72, one steering branch per desire left/straight/right, "
                                          "plus the teacher's target speed). Augmentation keeps the label true: a "
-                                         "flipped frame negates steering and swaps left/right desire, a shift adds "
+                                         "flipped frame negates steering and swaps left/right desire, a shift or a sideways move adds "
                                          "the steering back to the lane, roll and light leave it. Writes "
                                          "samples/epoch_<k>.png (val steering over time) every epoch. " + _CONFIG_HELP)
     _add_data_out(pilot, "recording folders")
@@ -88,6 +88,9 @@ def _add_train_pilot(kinds, lightning_flags: bool) -> None:
     pilot.add_argument("--flip", type=float, default=0.5, help="probability of a mirrored frame (default 0.5)")
     pilot.add_argument("--shift", type=float, default=0.08,
                        help="largest horizontal shift, a fraction of the width (relabelled; default 0.08; 0 = none)")
+    pilot.add_argument("--lateral", type=float, default=0.6,
+                       help="largest sideways move of the camera, metres: the road seen from beside the car's line, "
+                            "relabelled with the pursuit's steering back (default 0.6; 0 = none)")
     pilot.add_argument("--no-augment", dest="augment", action="store_false", help="train on the frames as recorded")
     pilot.add_argument("--val-fraction", type=float, default=0.1,
                        help="share of 50-frame blocks of each drive held out for validation (default 0.1)")
@@ -185,7 +188,10 @@ def _run_train(args) -> int:
         for k in ("flip", "shift"):
             if not 0 <= opts[k] <= 1:
                 raise UserError(f"--{k} {opts[k]}: must be within 0..1")
-        aug = AugmentParams(flip=opts["flip"], shift=opts["shift"]) if opts["augment"] else None
+        if not 0 <= opts["lateral"] <= 2:
+            raise UserError(f"--lateral {opts['lateral']}: must be within 0..2 metres")
+        aug = (AugmentParams(flip=opts["flip"], shift=opts["shift"], lateral_m=opts["lateral"])
+               if opts["augment"] else None)
         if not 0 < opts["val_fraction"] < 1:
             raise UserError(f"--val-fraction {opts['val_fraction']}: must be between 0 and 1")
         train, own = train_pilot, dict(arch=opts["arch"], speed_weight=opts["speed_weight"], augment=aug,
