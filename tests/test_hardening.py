@@ -91,6 +91,34 @@ def test_a_failing_sign_thread_stops_the_car_logs_once_and_keeps_trying(road, ca
     assert srv.totals["bad"] >= 6
 
 
+def test_signs_beside_the_lane_path_search_a_frame_only_once_its_command_is_out(road, monkeypatch):
+    """The worker's search would compete with the steering path for the interpreter: it gets each
+    frame after `answered()`, or with the next frame from a caller that never says so."""
+    from signlane.drive.stack import DriveStack
+    from signlane.signs.stage import SignStage
+    real_step, started = SignStage.step, []
+    ran = threading.Event()
+
+    def step(self, image):
+        started.append(int(image[0, 0, 0]))
+        ran.set()
+        return real_step(self, image)
+    monkeypatch.setattr(SignStage, "step", step)
+    frames = [road[k].copy() for k in range(3)]
+    for k, f in enumerate(frames):
+        f[0, 0] = k  # which frame the worker searched
+    with DriveStack(Config(), sync_signs=False) as stack:
+        stack.drive(frames[0], 3.0, 0.0, 0.0)
+        assert not ran.wait(0.5) and started == []  # held back while the command is not out
+        stack.answered()
+        assert ran.wait(10) and started == [0]
+        ran.clear()
+        stack.drive(frames[1], 3.0, 0.0, 0.1)  # never answered: goes with the next frame
+        assert not ran.wait(0.5)
+        stack.drive(frames[2], 3.0, 0.0, 0.2)
+        assert ran.wait(10) and started == [0, 1]
+
+
 def test_a_sign_model_whose_graph_breaks_its_contract_is_refused_at_startup(tmp_path):
     from signlane.onnx_model import ModelError
     bad = sign_model(tmp_path / "identity.onnx", identity=True)

@@ -33,6 +33,7 @@ class PerceptionStack:
         lanes.params_for(cfg_lanes.method, cfg_lanes.variant, **cfg_lanes.overrides())  # fail early on a bad name
         self.signs = None
         self._worker = None
+        self._held = None  # (frame, pose) for the worker, once the frame's answer is out
         if config.signs.enabled:
             from signlane.signs.stage import SignStage
             self.signs = SignStage(config.signs)
@@ -102,9 +103,19 @@ class PerceptionStack:
             except Exception as e:
                 raise stage_failure(e) from e
             return tuple(found), list(confirmed), pose
-        self._worker.submit(image, pose)
+        self.release_signs()  # the previous frame's, if its caller never said it had answered
+        self._held = (image, pose)
         found, confirmed, at = self._worker.latest()
         return tuple(found), confirmed, at
+
+    def release_signs(self) -> None:
+        """Hand the frame held back by `signs_now` to the sign worker: call it once the frame's
+        command is out. The worker then searches in the gap before the next frame instead of
+        beside the steering path, whose answer would otherwise wait on the interpreter lock
+        while the search runs Python. Its result is read on the next frame, as before."""
+        held, self._held = self._held, None
+        if held is not None and self._worker is not None:
+            self._worker.submit(*held)
 
     @property
     def sign_ms(self) -> dict[str, float]:

@@ -8,9 +8,11 @@ frame from their box size; then the behaviour state machine (signlane/behaviour.
 per stream (connection, camera): it carries tracking, confirmation, odometry and the state
 machine.
 
-With `sync_signs=False` the sign stage runs in a worker thread beside the lane path on the
-newest frame it can take, and steering uses its latest result, so classification never stalls
-steering (real time). Synchronous signs make lockstep runs deterministic.
+With `sync_signs=False` the sign stage runs in a worker thread on the newest frame it can take,
+and steering uses its latest result, so classification never stalls steering (real time). The
+worker gets each frame once its command is out (`answered()`, else at the next frame), so its
+search fills the gap between frames rather than competing with the steering path for the
+interpreter. Synchronous signs make lockstep runs deterministic.
 
 With a pilot (`--set pilot.model=FILE`, signlane/pilot.py) the pilot's steering replaces the
 lane follower's; lanes, junctions and signs still run, because the behaviour layer plans speed,
@@ -105,6 +107,11 @@ class DriveStack:
         frame = Frame(image, t, self.seq)
         self.seq += 1
         return Perception(frame, lane, signs, timing), Command(steering, throttle, state)
+
+    def answered(self) -> None:
+        """The last frame's command has been sent: with signs beside the lane path, their search
+        of that frame starts now (if never called, it starts with the next frame)."""
+        self.perception.release_signs()
 
     def _signs(self, image: np.ndarray, pose: OdoPose, small: np.ndarray) -> tuple[SignDetection, ...]:
         found, confirmed, at = self.perception.signs_now(image, pose, small)

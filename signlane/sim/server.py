@@ -211,6 +211,9 @@ class _Connection:
             rates.perceive_ms.append(res.step_ms - res.decode_ms)
         self.latest = res.answer
         latency = await self.send(res.answer, t_recv)
+        answered = getattr(self.driver, "answered", None)
+        if answered is not None:
+            answered()  # the sign search of this frame may start: steering no longer waits on it
         if not res.error:
             self.keep(res)
             self.driven += 1
