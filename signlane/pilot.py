@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from signlane.onnx_model import InputSpec, ModelError, OnnxModel, prepare_input
+from signlane.types import LaneEstimate
 
 TASK = "pilot"
 DESIRES = ("left", "straight", "right")
@@ -119,13 +120,40 @@ class PilotSteering:
     def __init__(self, model: PilotModel, junctions: str = "planner"):
         self.model, self.junctions = model, junctions
         self.last: PilotOutput | None = None
+        self.settling = False  # out of a planner-steered junction, not yet lined up with the exit lane
 
-    def steer(self, frame_bgr: np.ndarray, state: str, planner_steering: float) -> float:
-        if self.junctions == "planner" and state.startswith("junction-"):
-            self.last = None
-            return planner_steering
+    def steer(self, frame_bgr: np.ndarray, state: str, planner_steering: float,
+              lane: LaneEstimate | None = None) -> float:
+        """planner_steering: the behaviour layer's own (its path in a junction, the lane
+        follower's elsewhere); lane: the frame's lane estimate, which says when a car leaving a
+        planner-steered junction is lined up with the exit lane again."""
+        if self.junctions == "planner":
+            if state.startswith("junction-"):
+                # the path hands back with the car still turning (up to ~0.5 rad off the exit
+                # lane), a view the recordings show the pilot too little of, while the lane
+                # follower reads the heading error directly: it finishes the exit
+                self.settling = lane is not None
+            elif self.settling and lined_up(lane):
+                self.settling = False
+            if self.settling or state.startswith("junction-"):
+                self.last = None
+                return planner_steering
         self.last = self.model.step(frame_bgr, desire_of(state))
         return self.last.steering
+
+    def reset(self) -> None:
+        self.last, self.settling = None, False
+
+
+SETTLED_HEADING_RAD = 0.12  # about the largest heading the shift augmentation shows the pilot (7 deg)
+SETTLED_OFFSET = 0.25  # lane widths from the lane's centre
+
+
+def lined_up(lane: LaneEstimate | None) -> bool:
+    """Is the car lined up with its lane: the lane found, the heading within what the pilot was
+    trained on and the car near the centre."""
+    return (lane is not None and lane.found and abs(lane.heading) <= SETTLED_HEADING_RAD
+            and abs(lane.offset) <= SETTLED_OFFSET)
 
 
 SPLIT_BLOCK = 50  # consecutive recorded frames share a side of the train/val split (neighbours look alike)

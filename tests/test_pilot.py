@@ -292,6 +292,17 @@ def test_at_a_planned_junction_the_planner_steers_by_default_or_the_pilot_told_t
     told = PilotSteering(m, "pilot")
     assert told.steer(img, "junction-left", -0.3) == -0.6 and told.steer(img, "junction-right", 0.2) == 0.6
     assert m.asked == ["straight", "left", "right"] and told.last.speed == 3.0
+    # out of a planner-steered junction the lane follower finishes the exit: the pilot takes
+    # over once the car is lined up with the exit lane (heading and offset small)
+    from signlane.types import LaneEstimate
+    steer = PilotSteering(m)
+    turning = LaneEstimate("auto", True, offset=-0.3, heading=-0.5)
+    straight = LaneEstimate("auto", True, offset=0.05, heading=0.03)
+    assert steer.steer(img, "junction-right", 0.7, turning) == 0.7
+    assert steer.steer(img, "cruise", 0.4, turning) == 0.4  # still askew: the planner's
+    assert steer.steer(img, "cruise", 0.3, LaneEstimate("auto", False)) == 0.3  # lost: the planner's
+    assert steer.steer(img, "cruise", 0.02, straight) == 0.05  # lined up: the pilot's from here on
+    assert steer.steer(img, "cruise", 0.4, turning) == 0.05
 
 
 def test_eval_pilot_scores_models_side_by_side_and_draws(pilot, tmp_path, capsys):

@@ -101,7 +101,7 @@ class DriveStack:
         # what the planner itself would send: the label of a drive the pilot steers (DAgger)
         self.planner_command = Command(steering, throttle, state)
         if self.pilot is not None:
-            steering = self.pilot.steer(small, state, steering)
+            steering = self.pilot.steer(small, state, steering, lane)
             timing["pilot"] = (time.perf_counter() - t4) * 1e3
         lane = ps.in_frame_pixels(lane, w)  # report the lane in the frame's own pixels
         frame = Frame(image, t, self.seq)
@@ -134,6 +134,8 @@ class DriveStack:
     def reset(self) -> None:
         self.perception.reset()
         self.behaviour.reset()
+        if self.pilot is not None:
+            self.pilot.reset()
         self.odometry.reset()
         self.seq = 0
 
