@@ -207,7 +207,7 @@ def _cut_circle_score(hull: np.ndarray, w: int, h: int, frame_wh: tuple[int, int
     r = float(np.sqrt(max(c + cx * cx + cy * cy, 0.0)))
     if r < 2:
         return 0.0
-    resid = float(np.median(np.abs(np.hypot(pts[:, 0] - cx, pts[:, 1] - cy) - r))) / r
+    resid = _median(np.sort(np.abs(np.hypot(pts[:, 0] - cx, pts[:, 1] - cy) - r))) / r
     size = _unit(1.0 - abs(2 * r / max(w, h) - 1.0) / 0.6) if 2 * r > max(w, h) else 1.0
     return 0.7 * _unit(1.0 - resid / 0.12) * size
 
@@ -370,10 +370,16 @@ def _ring_interior(contours, members: list[int], box: tuple[int, int, int, int],
         return False
     # numpy's percentile and median (linear between order statistics) from one sort each: the
     # library calls cost ~50 us apiece in wrappers, and cluttered red frames test 100+ holes
-    if _quantile(np.sort(px[:, 1]), 0.5) > 60:
+    if _median(np.sort(px[:, 1])) > 60:
         return False
     v = np.sort(px[:, 2])
     return _quantile(v, 0.05) <= 0.8 * _quantile(v, 0.5)
+
+
+def _median(ordered: np.ndarray) -> float:
+    """np.median of already sorted values (the mean of the middle two when their count is even)."""
+    n = len(ordered)
+    return float(ordered[n // 2]) if n % 2 else (float(ordered[n // 2 - 1]) + float(ordered[n // 2])) / 2.0
 
 
 def _quantile(ordered: np.ndarray, q: float) -> float:
