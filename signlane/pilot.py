@@ -128,14 +128,15 @@ class PilotSteering:
         follower's elsewhere); lane: the frame's lane estimate, which says when a car leaving a
         planner-steered junction is lined up with the exit lane again."""
         if self.junctions == "planner":
-            if state.startswith("junction-"):
+            in_junction = state.startswith("junction-")
+            if in_junction:
                 # the path hands back with the car still turning (up to ~0.5 rad off the exit
                 # lane), a view the recordings show the pilot too little of, while the lane
                 # follower reads the heading error directly: it finishes the exit
                 self.settling = lane is not None
-            elif self.settling and lined_up(lane):
-                self.settling = False
-            if self.settling or state.startswith("junction-"):
+            elif self.settling:
+                self.settling = not lined_up(lane)
+            if in_junction or self.settling:
                 self.last = None
                 return planner_steering
         self.last = self.model.step(frame_bgr, desire_of(state))

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 
 import albumentations as A
@@ -33,8 +34,8 @@ from torch.utils.data import DataLoader, Dataset
 from tqdm import tqdm
 
 from signlane.camera import VIA_WHEELBASE_M
-from signlane.config import CameraConfig
-from signlane.control import MAX_WHEEL_DEG
+from signlane.config import CameraConfig, DriveConfig
+from signlane.control import MAX_WHEEL_DEG, PurePursuit
 from signlane.onnx_model import InputSpec
 from signlane.pilot import DESIRES, SPLIT_BLOCK, PilotFrame, flip_desire, preprocess_frames, read_pilot_frames
 from signlane.splits import VAL_FRACTION, split_of
@@ -45,12 +46,12 @@ CAMERA = CameraConfig()  # the camera the recordings come from: VIA's, in both r
 HFOV_DEG = CAMERA.hfov_deg
 
 
-def pursuit_lateral_gain(lookahead_m: float = 7.5, wheelbase_m: float = VIA_WHEELBASE_M,
-                         max_wheel_deg: float = MAX_WHEEL_DEG) -> float:
+def pursuit_lateral_gain(lookahead_m: float = PurePursuit().lookahead_m(DriveConfig().cruise_speed),
+                         wheelbase_m: float = VIA_WHEELBASE_M, max_wheel_deg: float = MAX_WHEEL_DEG) -> float:
     """Steering change per metre of the car standing right of its line, for the teacher's pure
     pursuit (signlane/control.py): kappa = 2 x / ld^2 with x = -d, steering = wheelbase * kappa
-    / max wheel angle, linearised. The default lookahead is the pursuit's at cruise (5 m + 0.5 s
-    x 5 m/s) with the camera's 1.1 m ahead of the axle left out: 0.16 per metre. Measured on the
+    / max wheel angle, linearised. The default lookahead is the pursuit's at cruise speed (7.5 m)
+    with the camera's 1.1 m ahead of the axle left out: 0.16 per metre. Measured on the
     teacher itself (loop_demo's first straight, the car moved +-0.4 and 0.8 m at 5 m/s) it is
     0.11 per metre on painted roads and 0.23 in VIA's style (road-edges reads the kerbed
     carriageway's offset larger); one gain between them errs toward the centre on painted roads,
@@ -101,20 +102,28 @@ def shift_sample(image: np.ndarray, steering: float, dx: float, gain: float,
 def lateral_sample(image: np.ndarray, steering: float, d_m: float, gain: float,
                    camera: CameraConfig = CAMERA) -> tuple[np.ndarray, float]:
     """The frame as seen from d_m metres to the right (the road moves left in view) and the label
-    that steers back: steering - gain * d_m, clamped. A ground point on row v moves by fx d (n.r)
-    / h pixels, n.r = cos(pitch) (v - cy) / fy + sin(pitch) being the ray's depth toward the
-    road (0 at the horizon, which stays put with everything above it)."""
+    that steers back: steering - gain * d_m, clamped."""
     h, w = image.shape[:2]
-    cam = camera.camera(w, h)
-    fx, fy, cx, cy = cam.K[0, 0], cam.K[1, 1], cam.K[0, 2], cam.K[1, 2]
-    p = math.radians(camera.pitch_deg)
-    rows = np.arange(h, dtype=np.float32)
-    depth = np.maximum(0.0, math.cos(p) * (rows - cy) / fy + math.sin(p))
-    move = (fx * d_m / camera.height_m * depth).astype(np.float32)  # pixels left, per row
-    map_x = np.arange(w, dtype=np.float32)[None, :] + move[:, None]  # output (u, v) reads input (u + move, v)
-    map_y = np.broadcast_to(rows[:, None], (h, w)).astype(np.float32)
-    out = cv2.remap(image, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    us, rows, per_m = _lateral_maps(w, h, camera)
+    map_x = us + np.float32(d_m) * per_m  # output (u, v) reads input (u + move, v)
+    out = cv2.remap(image, map_x, rows, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
     return out, float(np.clip(steering - gain * d_m, -1.0, 1.0))
+
+
+@lru_cache(maxsize=8)
+def _lateral_maps(w: int, h: int, camera: CameraConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(u, v, pixels moved per metre) maps for a (w, h) frame, read-only: a ground pixel moves by
+    fx d (down . ray) / camera height, down . ray being the camera's horizon function (0 on the
+    horizon, which stays put with everything above it). Made once per frame size: the loader
+    calls this for every augmented frame."""
+    cam = camera.camera(w, h)
+    n, c = cam.horizon()
+    us, vs = np.meshgrid(np.arange(w, dtype=np.float32), np.arange(h, dtype=np.float32))
+    depth = np.maximum(0.0, n[0] * us + n[1] * vs + c)
+    per_m = (cam.K[0, 0] / camera.height_m * depth).astype(np.float32)
+    for a in (us, vs, per_m):
+        a.flags.writeable = False
+    return us, vs, per_m
 
 
 def roll_sample(image: np.ndarray, deg: float) -> np.ndarray:
