@@ -319,3 +319,22 @@ def test_record_refuses_a_used_folder(tmp_path, capsys):
 def test_cli_rejects_an_unknown_lane_method(capsys):
     assert cli_main(["drive", "--port", "0", "--lanes", "nope"]) == 2
     assert "nope" in capsys.readouterr().err
+
+
+def test_a_recording_the_pilot_steers_is_labelled_with_what_the_planner_would_send(frames, tmp_path):
+    """With `--set pilot.model=...` the sent steering is the pilot's; the label (top-level
+    steering, teacher) is the planner's own command of the same frame, so such a drive trains
+    like a DAgger drive."""
+    rec = tmp_path / "rec"
+    cfg = Config.load(None, ["pilot.model=shipped", "signs.enabled=false"])
+    with DriveServer(cfg, ServerOptions(port=0, record=rec)) as srv:
+        with connect(srv.url) as ws:
+            answers = [ask(ws, tel(f, i)) for i, f in enumerate(frames)]
+    lines = [json.loads(x) for x in (rec / "drive.jsonl").read_text().splitlines()]
+    assert len(lines) == len(frames)
+    for line, answer in zip(lines, answers):
+        assert line["command"]["steering"] == pytest.approx(answer["steering"], abs=1e-4)
+        assert line["student"] == pytest.approx(answer["steering"], abs=1e-4) and line["steered_by"] == "student"
+        assert line["steering"] == line["teacher"]["steering"]
+    # the pilot and the planner disagree somewhere on these frames: the label is not the sent command
+    assert max(abs(x["teacher"]["steering"] - x["command"]["steering"]) for x in lines) > 0.01

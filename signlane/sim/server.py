@@ -77,6 +77,8 @@ class _Result:
     telemetry: Any = None
     cancelled: bool = False  # the connection closed before the frame was driven
     decode_ms: float = 0.0  # of step_ms, the message's: JSON, numbers, base64, JPEG checks and decoding
+    teacher: Any = None  # with a pilot: the planner's own command, a recording's label
+    steered_by: str = ""  # with a pilot: "student" where it steered, "teacher" where the planner did
 
 
 class _Server:
@@ -234,7 +236,11 @@ class _Connection:
         t1 = time.perf_counter()
         perception, cmd = self.driver.step(tel)
         answer = encode_command(cmd.steering, cmd.throttle)
-        return _Result(answer, (time.perf_counter() - t0) * 1e3, "", perception, cmd, tel, decode_ms=(t1 - t0) * 1e3)
+        pilot = getattr(self.driver, "pilot", None)
+        teacher = self.driver.planner_command if pilot is not None else None
+        steered_by = "" if pilot is None else ("student" if pilot.last is not None else "teacher")
+        return _Result(answer, (time.perf_counter() - t0) * 1e3, "", perception, cmd, tel,
+                       decode_ms=(t1 - t0) * 1e3, teacher=teacher, steered_by=steered_by)
 
     async def send(self, answer: str, t_recv: float) -> float | None:
         """Send an answer; its latency in ms since the frame arrived (None if the client is gone)."""
@@ -253,9 +259,10 @@ class _Connection:
             return
         frame_id = f"c{self.cid}-{self.driven:06d}"
         sent = sent_command(res.answer, res.command.state)
-        if s.recorder:
+        if s.recorder:  # a pilot's drive is labelled with what the planner would have sent
+            extra = {"student": round(float(sent.steering), 4), "steered_by": res.steered_by} if res.teacher else None
             s.disk.submit(lambda: s.recorder.write(frame_id, self.cid, res.telemetry.jpeg, res.telemetry,
-                                                   res.perception, sent))
+                                                   res.perception, sent, res.teacher, extra))
         if s.shower and s.shower.wants(self.driven):
             s.disk.submit(s.shower.write, frame_id, res.telemetry.speed_mps, res.perception, sent)
 
