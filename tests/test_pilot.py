@@ -175,6 +175,19 @@ def test_a_lateral_move_shows_the_road_from_beside_the_line_and_steers_back():
     assert np.array_equal(lateral_sample(frames[0.0], 0.0, 0.5, gain)[0][:100], frames[0.0][:100])  # sky stays
 
 
+def test_the_balancing_sampler_draws_rare_bends_as_often_as_straight_road():
+    from signlane_train.pilot_data import steering_weights
+    rng = np.random.default_rng(0)
+    s = np.concatenate([rng.uniform(-0.04, 0.04, 900), rng.uniform(0.30, 0.34, 90), -rng.uniform(0.30, 0.34, 10)])
+    assert np.allclose(steering_weights(s, 0.0), 1.0)
+    w = steering_weights(s, 1.0)
+    assert w.mean() == pytest.approx(1.0)
+    straight, bends = w[:900].sum(), w[900:].sum()
+    assert straight == pytest.approx(bends)  # one bin each, left and right bends together (a flip swaps them)
+    half = steering_weights(s, 0.5)
+    assert half[:900].sum() / half[900:].sum() == pytest.approx(3.0)  # sqrt(900 / 100)
+
+
 def test_desire_follows_the_planned_exit_and_picks_the_branch():
     assert desire_of("junction-left") == "left" and desire_of("junction-right") == "right"
     assert desire_of("cruise") == desire_of("stopped") == desire_of("junction-straight") == "straight"

@@ -33,9 +33,10 @@ def train_pilot(data: list[str | Path], out: str | Path, arch: str = "small", ep
                 val_fraction: float = VAL_FRACTION, patience: int = 5, seed: int = 0, resume: bool = False,
                 trainer_args: dict | None = None, workers: int = 0, quiet: bool = False, threads: int = 0,
                 deterministic: bool = True, augment: AugmentParams | None = AugmentParams(),
-                speed_weight: float = 0.1) -> dict:
+                speed_weight: float = 0.1, balance: float = 0.0) -> dict:
     """Train; writes checkpoints/, logs/, tensorboard/, samples/epoch_<k>.png (val steering over
-    time), config.json and report.json. lr and batch_size default per arch (DEFAULTS)."""
+    time), config.json and report.json. lr and batch_size default per arch (DEFAULTS); balance:
+    the power of the steering-balanced sampler (pilot_data.steering_weights; 0 = uniform)."""
     import lightning as L
     if arch not in DEFAULTS:
         raise ValueError(f"arch {arch!r}: one of {', '.join(DEFAULTS)}")
@@ -47,14 +48,14 @@ def train_pilot(data: list[str | Path], out: str | Path, arch: str = "small", ep
     ckpt_path = resume_path(out, resume)
     L.seed_everything(seed, workers=True)
     spec = spec_of(arch)
-    dm = PilotDataModule(data, spec, batch_size, val_fraction, augment, workers, seed)
+    dm = PilotDataModule(data, spec, batch_size, val_fraction, augment, workers, seed, balance)
     dm.setup()
     task = PilotTask(arch=arch, lr=lr, speed_weight=speed_weight, input_size=(spec.width, spec.height), width=width)
     task.samples_dir = out / "samples"
     info = RunInfo(data, {"arch": arch})
     save_run_config(out, {"task": "pilot", "arch": arch, "data": info.data, "data_hash": info.data_hash,
                           "epochs": epochs, "batch_size": batch_size, "lr": lr, "width": width,
-                          "speed_weight": speed_weight, "val_fraction": val_fraction, "seed": seed,
+                          "speed_weight": speed_weight, "balance": balance, "val_fraction": val_fraction, "seed": seed,
                           "deterministic": deterministic, "input": [spec.width, spec.height],
                           "augment": None if augment is None else augment.__dict__,
                           "parameters": count_parameters(task.net), "train_frames": len(dm.train_items),

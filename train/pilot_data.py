@@ -30,7 +30,7 @@ import cv2
 import lightning as L
 import numpy as np
 import torch
-from torch.utils.data import DataLoader, Dataset
+from torch.utils.data import DataLoader, Dataset, WeightedRandomSampler
 from tqdm import tqdm
 
 from signlane.camera import VIA_WHEELBASE_M
@@ -81,6 +81,22 @@ class AugmentParams:
     lateral_gain: float = pursuit_lateral_gain()
     roll_deg: float = 2.0
     photometric: bool = True
+
+
+STEERING_BIN = 0.05  # |steering| bin width of the balancing sampler
+STEERING_BINS = 10  # the last bin holds every |steering| >= 0.45
+
+
+def steering_weights(steering: np.ndarray, power: float) -> np.ndarray:
+    """Sampling weight per frame: (frames in its |steering| bin) ** -power, mean 1. Straight road
+    fills most of a drive, so uniform sampling shows the net few of the hard bends (S-bends, tight
+    junction exits) its closed-loop failures come from; power 1 makes every bin equally likely,
+    0 is uniform. |steering|, because a flip negates it."""
+    s = np.abs(np.asarray(steering, np.float64))
+    bins = np.minimum((s / STEERING_BIN).astype(int), STEERING_BINS - 1)
+    counts = np.bincount(bins, minlength=STEERING_BINS).astype(np.float64)
+    w = counts[bins] ** -float(power)
+    return w / w.mean()
 
 
 def flip_sample(image: np.ndarray, steering: float, desire: str) -> tuple[np.ndarray, float, str]:
@@ -186,9 +202,10 @@ class PilotDataset(Dataset):
 class PilotDataModule(L.LightningDataModule):
     def __init__(self, roots: list[str | Path], spec: InputSpec, batch_size: int = 100,
                  val_fraction: float = VAL_FRACTION, augment: AugmentParams | None = AugmentParams(),
-                 workers: int = 0, seed: int = 0):
+                 workers: int = 0, seed: int = 0, balance: float = 0.0):
         super().__init__()
         self.roots = [Path(r) for r in roots]
+        self.balance = balance
         self.spec, self.batch_size, self.val_fraction = spec, batch_size, val_fraction
         self.augment, self.workers, self.seed = augment, workers, seed
         self.train_items: list[PilotFrame] = []
@@ -208,7 +225,13 @@ class PilotDataModule(L.LightningDataModule):
 
     def train_dataloader(self) -> DataLoader:
         ds = PilotDataset(self.train_items, self.train_frames, self.spec, self.augment, self.seed)
-        return DataLoader(ds, batch_size=self.batch_size, shuffle=True, num_workers=self.workers,
+        sampler = None
+        if self.balance > 0:  # as many draws per epoch as frames, weighted toward rare steering
+            w = steering_weights(np.array([it.steering for it in self.train_items]), self.balance)
+            sampler = WeightedRandomSampler(torch.from_numpy(w), len(ds), replacement=True,
+                                            generator=torch.Generator().manual_seed(self.seed))
+        return DataLoader(ds, batch_size=self.batch_size, shuffle=sampler is None, sampler=sampler,
+                          num_workers=self.workers,
                           worker_init_fn=seed_worker, persistent_workers=self.workers > 0,
                           drop_last=len(ds) > 2 * self.batch_size)
 

@@ -91,6 +91,9 @@ def _add_train_pilot(kinds, lightning_flags: bool) -> None:
     pilot.add_argument("--lateral", type=float, default=0.6,
                        help="largest sideways move of the camera, metres: the road seen from beside the car's line, "
                             "relabelled with the pursuit's steering back (default 0.6; 0 = none)")
+    pilot.add_argument("--balance", type=float, default=0.0,
+                       help="draw frames weighted toward rare steering: (frames in the |steering| bin) ** -B, "
+                            "0..1 (default 0, uniform; 1 = every bin alike)")
     pilot.add_argument("--no-augment", dest="augment", action="store_false", help="train on the frames as recorded")
     pilot.add_argument("--val-fraction", type=float, default=0.1,
                        help="share of 50-frame blocks of each drive held out for validation (default 0.1)")
@@ -194,8 +197,10 @@ def _run_train(args) -> int:
                if opts["augment"] else None)
         if not 0 < opts["val_fraction"] < 1:
             raise UserError(f"--val-fraction {opts['val_fraction']}: must be between 0 and 1")
+        if not 0 <= opts["balance"] <= 1:
+            raise UserError(f"--balance {opts['balance']}: must be within 0..1")
         train, own = train_pilot, dict(arch=opts["arch"], speed_weight=opts["speed_weight"], augment=aug,
-                                       val_fraction=opts["val_fraction"])
+                                       val_fraction=opts["val_fraction"], balance=opts["balance"])
     elif args.kind == "lanes":
         train, own = train_lanes, dict(pos_weight=opts["pos_weight"])
     else:
