@@ -60,23 +60,3 @@ def test_kerbed_roads_with_shadows_read_kerbed_and_painted_ones_two_lane():
     assert max(via) < 0.1, via
     painted = [_two_lane_share("painted", s) for s in range(2)]
     assert min(painted) > 0.9, painted
-
-
-def test_auto_follows_the_paint_where_no_carriageway_is_found():
-    """Random looks, procedural seed 8, painted: a verge whose colour the road's rules take for
-    road, so no carriageway is found, while the paint method finds the right lane. auto used
-    to report the lane lost there and the car never moved."""
-    from signlane.config import Config
-    from signlane.lanes.auto import AutoParams, auto
-    from signlane.sim.simulator import SimConfig, Simulator
-    from signlane.world.maps import load_track
-    sim = Simulator(load_track("random", "painted", 8), SimConfig(random_looks=True, looks_seed=8, image_lag_frames=0))
-    sim.observe()
-    image = sim.last_image
-    cam = Config().camera.camera(image.shape[1], image.shape[0])
-    est, state = None, None
-    for _ in range(3):  # the car stands: the same frame, frame after frame
-        est, state = auto(image, cam, AutoParams(), state)
-    assert not state.road.two_lane  # the carriageway's rules did not find this road
-    assert est.found and est.basis == "paint"
-    assert abs(est.offset) < 0.15 and abs(est.heading) < 0.05  # the car starts on its lane's centre

@@ -81,22 +81,20 @@ def auto(image_bgr: np.ndarray, camera: Camera | None, params: AutoParams,
         # clearly narrower than the carriageway, frame after frame. Once a road has long shown
         # none, every few frames is enough to notice a change (the paint method costs about as
         # much as the carriageway again)
-        edges = carriageway_estimate(NAME, cam, left, right, width, road_state, mask, (h, w))
-        if edges.found and state.lanes_seen is not None and state.lanes_seen < params.settled_below \
+        if state.lanes_seen is not None and state.lanes_seen < params.settled_below \
                 and state.since_check + 1 < params.settled_every:
-            return edges, AutoState(road_state, None, state.lanes_seen, state.since_check + 1)
+            return carriageway_estimate(NAME, cam, left, right, width, road_state, mask, (h, w)), \
+                AutoState(road_state, None, state.lanes_seen, state.since_check + 1)
         est, paint_state = sliding_window(image_bgr, cam, params.paint, state.paint)
         inside = est.found and est.confidence >= params.lane_confidence and width > 0 \
             and est.lane_width_m < params.lane_share * width and _road_beside(est, road_state.scan, params)
         lanes_seen = _remember(state.lanes_seen, float(inside), params.lane_memory)
-        if lanes_seen > params.lanes_above or (est.found and not edges.found):
-            # a lane road; or no carriageway found at all (a verge coloured like road, a look the
-            # road's colour rules do not know) while paint was found: follow the paint rather
-            # than stand still
+        if lanes_seen > params.lanes_above:
             if est.found:
                 return replace(est, method=NAME, basis="paint"), AutoState(road_state, paint_state, lanes_seen)
             return replace(est, method=NAME), AutoState(road_state, paint_state, lanes_seen)
-        return edges, AutoState(road_state, paint_state, lanes_seen)
+        return carriageway_estimate(NAME, cam, left, right, width, road_state, mask, (h, w)), \
+            AutoState(road_state, paint_state, lanes_seen)
     est, paint_state = sliding_window(image_bgr, cam, params.paint, state.paint)
     if est.found:
         return replace(est, method=NAME, basis="paint"), AutoState(road_state, paint_state, state.lanes_seen)
