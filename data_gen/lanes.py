@@ -27,7 +27,7 @@ from signlane_data.common import (PARTIAL, atomic_imwrite, atomic_write_json, at
                                   partial_dir, prepare_output, run_indexed, sample_id, write_manifest)
 from signlane import label_masks
 from signlane.world.render import Sample
-from signlane.world.sampling import HEAVY, FrameSampler, SamplerConfig
+from signlane.world.sampling import PRESETS, FrameSampler, SamplerConfig
 from signlane.world.truth import GroundTruth
 
 log = logging.getLogger(__name__)
@@ -131,15 +131,16 @@ def generate_lanes(out: str | Path, n: int, seed: int, width: int = 320, height:
     """Write a lane dataset of `n` frames to `out` (layout in the module docstring); return its
     manifest. Frame i depends only on (seed, i), so `workers` never changes the bytes written.
     preset 'heavy' replaces `effects` with the sampler's HEAVY randomisation (night, rain, strong
-    wear and shadows, wider camera spread, 16:9 frames among the 4:3 ones).
+    wear and shadows, wider camera spread, 16:9 frames among the 4:3 ones); 'world' adds cameras
+    of any height, pitch and field of view (sampling.WORLD).
     Raises DatasetError if `out` is not empty and is not this dataset or, without `resume`,
     holds an unfinished run."""
     if n < 1:
         raise ValueError(f"n must be >= 1, got {n}")
     out = Path(out)
-    if preset not in ("default", "heavy"):
-        raise ValueError(f"preset must be 'default' or 'heavy', not {preset!r}")
-    extra = dict(HEAVY) if preset == "heavy" else {"effects": effects}
+    if preset not in PRESETS:
+        raise ValueError(f"preset must be one of {', '.join(PRESETS)}, not {preset!r}")
+    extra = dict(PRESETS[preset]) if preset != "default" else {"effects": effects}
     sampler = SamplerConfig(width=width, height=height, randomise=randomise, style=style, **extra)
     config = lanes_config(n, seed, sampler, drivable)
     manifest = prepare_output(out, "lanes", config, resume)

@@ -46,7 +46,8 @@ class CameraConfig:
 class LanesConfig:
     method: str = "auto"  # road-edges on a kerbed carriageway, sliding-window on painted lanes (lanes/auto.py)
     variant: str = "robust"  # robust | published
-    model: str = ""  # a learned method's ONNX file (segnet); "" = the shipped signlane/models/lanes.onnx
+    model: str = ""  # a learned model's ONNX file: segnet's ("" = the shipped signlane/models/lanes.onnx), or a road
+    # model for auto ("" = colour rules; "shipped" = signlane/models/lanes.onnx)
 
     def overrides(self) -> dict:
         """Method parameters the config sets beyond the variant's (a method without a `model`

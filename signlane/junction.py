@@ -99,9 +99,14 @@ class JunctionDetector:
     def _y_of_row(self, row: np.ndarray | float) -> np.ndarray | float:
         return self.p.y_range_m[1] - (np.asarray(row) + 0.5) / self.p.px_per_m
 
-    def road_mask(self, image_bgr: np.ndarray) -> np.ndarray:
-        """uint8 (h, w) bird's-eye mask, 255 where the ground looks like the road ahead of the car."""
+    def road_mask(self, image_bgr: np.ndarray, maps=None) -> np.ndarray:
+        """uint8 (h, w) bird's-eye mask, 255 where the ground looks like the road ahead of the car;
+        with a road model's maps of the frame (seg_model.FrameMaps), where the model sees road or paint."""
         p = self.p
+        if maps is not None:
+            to_bev = self.bev.image_to_bev_h()
+            road = maps.warped(maps.road, to_bev, self.bev.size) | maps.warped(maps.marking, to_bev, self.bev.size)
+            return cv2.morphologyEx((road & self.visible).astype(np.uint8) * 255, cv2.MORPH_OPEN, _OPEN_KERNEL)
         lab = cv2.cvtColor(self.bev.warp(image_bgr), cv2.COLOR_BGR2LAB).astype(np.int16)
         y0, y1 = p.y_range_m[0], p.y_range_m[0] + 3.0
         rows = slice(int((p.y_range_m[1] - y1) * p.px_per_m), int((p.y_range_m[1] - y0) * p.px_per_m))
@@ -176,11 +181,12 @@ class JunctionDetector:
                 row -= 1
         return None
 
-    def detect(self, image_bgr: np.ndarray, lane_width_m: float | None = None) -> JunctionView:
-        """Openings left and right of the ego road in an image from this detector's camera."""
+    def detect(self, image_bgr: np.ndarray, lane_width_m: float | None = None, maps=None) -> JunctionView:
+        """Openings left and right of the ego road in an image from this detector's camera (the
+        road from a road model's `maps` of it where given, else from colour)."""
         p = self.p
         lw = lane_width_m or p.lane_width_m
-        mask = self.road_mask(image_bgr)
+        mask = self.road_mask(image_bgr, maps)
         share = self.outer_road_share(mask)
         self.outer_share = share if self.outer_share is None else \
             p.outer_memory * self.outer_share + (1 - p.outer_memory) * share

@@ -14,8 +14,9 @@ from signlane.cli import main
 from signlane.config import CameraConfig
 from signlane.label_masks import IGNORE
 from signlane.lanes import seg_model
-from signlane.lanes.road_edges import RoadEdgesState
-from signlane.lanes.segnet import SegNetParams, _from_edges, _output_to_frame
+from signlane.lanes.road_edges import RoadEdgesParams, RoadEdgesState
+from signlane.lanes.seg_model import FrameMaps, output_to_frame
+from signlane.lanes.segnet import edges_lane
 from signlane.world.sampling import FrameSampler, SamplerConfig
 
 
@@ -113,10 +114,10 @@ def test_segnet_keeps_the_middle_of_the_drivable_area_where_there_is_no_paint(ro
     prob = (smp.truth.drivable_mask > 0).astype(np.float32)
     h, w = prob.shape
     cam = via_camera(w, h)
-    debug = np.zeros((h, w), np.uint8)
-    est, state = _from_edges(prob, _output_to_frame(prob.shape, w, h), cam, SegNetParams(),
-                             RoadEdgesState(), debug, smp.truth.drivable_mask)
-    assert est.found and est.basis == "edges" and est.drivable_mask is smp.truth.drivable_mask
+    maps = FrameMaps(np.zeros_like(prob), prob, output_to_frame(prob.shape, w, h))
+    est, state = edges_lane("segnet", smp.image, cam, RoadEdgesParams(), RoadEdgesState(), maps)
+    assert est.found and est.basis == "edges"
+    assert np.array_equal(est.drivable_mask > 0, smp.truth.drivable_mask > 0)  # the model's road, at the frame's size
     assert abs(est.offset - smp.truth.offset) < 0.1, (est.offset, smp.truth.offset)
     assert state.scan is not None
 
@@ -151,8 +152,8 @@ def test_segnet_edges_keep_the_right_half_of_a_road_with_a_centre_line():
         smp = d.sample(i)
         road = (smp.truth.drivable_mask > 0).astype(np.float32)
         paint = (smp.truth.marking_mask > 0).astype(np.float32)
-        est, state = _from_edges(road, _output_to_frame(road.shape, 320, 240), d.camera, SegNetParams(), state,
-                                 np.zeros((240, 320), np.uint8), smp.truth.drivable_mask, paint)
+        maps = FrameMaps(paint, road, output_to_frame(road.shape, 320, 240))
+        est, state = edges_lane("segnet", smp.image, d.camera, RoadEdgesParams(), state, maps)
         if i >= 6:
             errors.append(abs(est.offset - smp.truth.offset) if est.found else 1.0)
     assert state.two_lane and max(errors) < 0.15, errors

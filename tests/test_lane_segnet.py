@@ -53,6 +53,21 @@ def test_heavy_preset_is_seeded_and_mixes_wide_frames():
     assert shapes == {(240, 320), (180, 320)}
 
 
+def test_world_preset_draws_any_cars_camera():
+    from signlane.world.sampling import WORLD, WORLD_HEIGHT_M, WORLD_HFOV_DEG, WORLD_PITCH_DEG, world_camera
+    rng = np.random.default_rng(0)
+    h, p, f = np.array([(c.height_m, c.pitch_deg, c.hfov_deg) for c in
+                        (world_camera(rng, 320, 240) for _ in range(400))]).T
+    for v, (lo, hi) in ((h, WORLD_HEIGHT_M), (p, WORLD_PITCH_DEG), (f, WORLD_HFOV_DEG)):
+        assert lo <= v.min() and v.max() <= hi and v.min() < lo + 0.1 * (hi - lo) and v.max() > hi - 0.1 * (hi - lo)
+    assert np.median(h) < 1.0  # log-uniform: as many toy cars as dashcams
+    # in the sampler (the rendered camera, with the effects' small jitter): far outside the heavy
+    # preset's cameras (1-3.5 m high, pitched 3-22 degrees)
+    world = FrameSampler(9, SamplerConfig(**WORLD))
+    cams = np.array([(c.height_m, c.pitch_deg, c.hfov_deg) for c in (world.sample(i).truth.camera for i in range(40))])
+    assert cams[:, 0].min() < 0.5 and cams[:, 1].min() < 2.0 and cams[:, 2].max() > 110
+
+
 def test_autolabel_keeps_confident_frames_in_the_lane_layout(trained):
     root, auto, *_ = trained
     out = root / "auto"

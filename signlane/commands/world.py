@@ -37,9 +37,11 @@ def add_gen(sub) -> None:
     lanes.add_argument("--effects", choices=["clean", "normal", "hard", "heavy", "mixed", "wild"], default="mixed",
                        help="photometric/pose randomisation (default mixed: normal and hard; wild: normal, "
                             "hard and heavy = night, rain, stronger light and pose changes)")
-    lanes.add_argument("--preset", choices=["default", "heavy"], default="default",
+    lanes.add_argument("--preset", choices=["default", "heavy", "world"], default="default",
                        help="heavy: wild effects, strong wear and shadows, wider camera spread, a third of the "
-                            "frames 16:9 (for lane-segmentation training; overrides --effects)")
+                            "frames 16:9 (for lane-segmentation training; overrides --effects); world: heavy, "
+                            "and two frames in three from any camera (0.2-3 m high, pitched 0-25 degrees, "
+                            "50-120 degrees field of view: for road models that meet unmeasured cameras)")
     lanes.add_argument("--drivable", action="store_true",
                        help="also write drivable/<id>.png (class ids: 1 road surface, 0 not)")
     lanes.add_argument("--no-randomise", dest="randomise", action="store_false",

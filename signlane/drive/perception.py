@@ -85,7 +85,7 @@ class PerceptionStack:
         if not two_lane:
             view = view_from_scan(road.scan)
         else:
-            view = self.junctions.detect(small, lane.lane_width_m or None)
+            view = self.junctions.detect(small, lane.lane_width_m or None, getattr(self.lane.state, "maps", None))
             if road is not None and road.scan is not None:
                 view = with_road_end(view, road.scan)
         return view, two_lane

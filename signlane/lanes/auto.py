@@ -8,6 +8,11 @@ right half of the carriageway. A wide road without a centre line whose lane line
 (a highway) is told from a kerbed one by the paint method finding, frame after frame, a lane
 clearly narrower than the carriageway: then the lane is that one. `LaneEstimate.basis` says which
 ("edges" or "paint").
+
+With a road model (`model`: `--set lanes.model=FILE`, or `shipped`), the road and the paint are
+the model's (one run of the network per frame) instead of colour rules: the carriageway is
+scanned in its drivable area and the lanes are fitted to its paint; every decision above, and
+the junctions read from the scan, are made the same way.
 """
 from __future__ import annotations
 
@@ -17,10 +22,12 @@ import cv2
 import numpy as np
 
 from signlane.camera import Camera
-from signlane.lanes import register
-from signlane.lanes.geometry import Boundary, camera_for, estimate_from_fits
-from signlane.lanes.road_edges import RoadEdgesParams, RoadEdgesState, carriageway, carriageway_estimate
+from signlane.lanes import register, seg_model
+from signlane.lanes.geometry import camera_for
+from signlane.lanes.road_edges import (RoadEdgesParams, RoadEdgesState, carriageway, carriageway_estimate,
+                                       right_half_estimate)
 from signlane.lanes.sliding_window import SlidingWindowParams, SlidingWindowState, sliding_window
+from signlane.onnx_model import ModelError
 from signlane.types import LaneEstimate
 
 NAME = "auto"
@@ -44,6 +51,9 @@ class AutoParams:
     settled_every: int = 8  # ... every this many frames (a quarter second at 30 frames/s: a highway
     # is still noticed within about 2 s, and the paint method, which costs about as much as the
     # carriageway again, runs on one frame in eight)
+    model: str = ""  # a road model's ONNX file (drivable + marking heads), "shipped" for signlane/models/lanes.onnx;
+    # "" = colour rules (no model)
+    threads: int = 1  # the road model's onnxruntime threads
 
     @classmethod
     def published(cls) -> "AutoParams":
@@ -56,13 +66,14 @@ class AutoState:
     paint: SlidingWindowState | None = None
     lanes_seen: float | None = None  # running share of frames where paint bounded a lane inside the carriageway
     since_check: int = 0  # frames since that was last looked at
+    maps: seg_model.FrameMaps | None = None  # the road model's maps of the last frame (junctions read them)
 
     @property
     def two_lane(self) -> bool:
         return self.road.two_lane
 
     def forget_tracks(self) -> "AutoState":
-        return AutoState(self.road.forget_tracks(), None, self.lanes_seen)
+        return AutoState(self.road.forget_tracks(), None, self.lanes_seen, maps=self.maps)
 
 
 @register(NAME, AutoParams)
@@ -74,7 +85,8 @@ def auto(image_bgr: np.ndarray, camera: Camera | None, params: AutoParams,
     if min(h, w) < 16:
         return LaneEstimate(NAME, False, debug_mask=np.zeros((h, w), np.uint8)), state
     cam = camera_for(image_bgr, camera)
-    left, right, width, road_state, mask = carriageway(image_bgr, cam, params.road, state.road)
+    maps = _road_maps(image_bgr, params)
+    left, right, width, road_state, mask = carriageway(image_bgr, cam, params.road, state.road, maps)
     if not road_state.two_lane:
         # no centre line on the carriageway's middle: a kerbed road (VIA's), or a wide road whose
         # lane lines divide it into lanes (a highway), told apart by whether paint bounds a lane
@@ -84,25 +96,46 @@ def auto(image_bgr: np.ndarray, camera: Camera | None, params: AutoParams,
         if state.lanes_seen is not None and state.lanes_seen < params.settled_below \
                 and state.since_check + 1 < params.settled_every:
             return carriageway_estimate(NAME, cam, left, right, width, road_state, mask, (h, w)), \
-                AutoState(road_state, None, state.lanes_seen, state.since_check + 1)
-        est, paint_state = sliding_window(image_bgr, cam, params.paint, state.paint)
+                AutoState(road_state, None, state.lanes_seen, state.since_check + 1, maps)
+        est, paint_state = _paint(image_bgr, cam, params, state.paint, maps)
         inside = est.found and est.confidence >= params.lane_confidence and width > 0 \
             and est.lane_width_m < params.lane_share * width and _road_beside(est, road_state.scan, params)
         lanes_seen = _remember(state.lanes_seen, float(inside), params.lane_memory)
         if lanes_seen > params.lanes_above:
             if est.found:
-                return replace(est, method=NAME, basis="paint"), AutoState(road_state, paint_state, lanes_seen)
-            return replace(est, method=NAME), AutoState(road_state, paint_state, lanes_seen)
+                return replace(est, method=NAME, basis="paint", drivable_mask=mask), \
+                    AutoState(road_state, paint_state, lanes_seen, maps=maps)
+            return replace(est, method=NAME), AutoState(road_state, paint_state, lanes_seen, maps=maps)
         return carriageway_estimate(NAME, cam, left, right, width, road_state, mask, (h, w)), \
-            AutoState(road_state, paint_state, lanes_seen)
-    est, paint_state = sliding_window(image_bgr, cam, params.paint, state.paint)
+            AutoState(road_state, paint_state, lanes_seen, maps=maps)
+    est, paint_state = _paint(image_bgr, cam, params, state.paint, maps)
     if est.found:
-        return replace(est, method=NAME, basis="paint"), AutoState(road_state, paint_state, state.lanes_seen)
+        return replace(est, method=NAME, basis="paint", drivable_mask=mask), \
+            AutoState(road_state, paint_state, state.lanes_seen, maps=maps)
     # no paint found this frame: the right half of the carriageway
-    mid = None if left is None or right is None else Boundary((left.coeffs + right.coeffs) / 2, left.y_range)
-    debug = mask if mask is not None else np.zeros((h, w), np.uint8)
-    est = estimate_from_fits(NAME, cam, mid, right, width / 2, 0.5 if mid is not None else None, debug)
-    return replace(est, basis="edges"), AutoState(road_state, paint_state, state.lanes_seen)
+    return right_half_estimate(NAME, cam, left, right, width, mask, (h, w)), \
+        AutoState(road_state, paint_state, state.lanes_seen, maps=maps)
+
+
+def _road_maps(image_bgr: np.ndarray, params: AutoParams) -> seg_model.FrameMaps | None:
+    """The road model's maps of the frame, or None without a model. ModelError for a model
+    without a road output (a marking-only model cannot tell road from verge)."""
+    if not params.model:
+        return None
+    model = seg_model.load(seg_model.resolve(params.model), params.threads)
+    if not model.has_drivable:
+        raise ModelError(f"{model.model.path}: a lane-marking model (classes {list(model.classes)}); auto needs a "
+                         f"road model, classes {list(seg_model.ROAD_CLASSES)}")
+    return model.frame_maps(np.ascontiguousarray(image_bgr[:, :, :3]))
+
+
+def _paint(image_bgr: np.ndarray, cam: Camera, params: AutoParams, state: SlidingWindowState | None,
+           maps: seg_model.FrameMaps | None) -> tuple[LaneEstimate, SlidingWindowState]:
+    """The paint method: sliding-window on the frame, or its back-end on the road model's paint."""
+    if maps is None:
+        return sliding_window(image_bgr, cam, params.paint, state)
+    from signlane.lanes.segnet import paint_lane
+    return paint_lane(NAME, maps, cam, params.paint, state)
 
 
 def road_state(state) -> RoadEdgesState | None:

@@ -12,6 +12,11 @@ the lane is the whole carriageway and `offset` is from its middle.
 
 The state carries the measured width and how much of the carriageway's middle has looked like a
 painted line (averaged over frames): `centre_paint` above `paint_share` means a two-lane road.
+
+Given a road model's maps of the frame (`seg_model.FrameMaps`: `--set lanes.model=FILE`), the
+road and the paint are the model's, warped into the same view, instead of the colour rules:
+a verge that looks like road, or a look the rules do not know, no longer decides where the
+carriageway is. The scan, the fits and everything read from the scan (junctions) are the same.
 """
 from __future__ import annotations
 
@@ -24,7 +29,8 @@ import numpy as np
 
 from signlane.camera import BirdsEye, Camera
 from signlane.lanes import register
-from signlane.lanes.geometry import camera_for, estimate_from_fits, fit_boundary, slant
+from signlane.lanes.geometry import Boundary, camera_for, estimate_from_fits, fit_boundary, slant
+from signlane.lanes.seg_model import FrameMaps
 from signlane.types import LaneEstimate
 
 NAME = "road-edges"
@@ -98,9 +104,7 @@ def road_mask(bev_bgr: np.ndarray, visible: np.ndarray, p: RoadEdgesParams,
     over a kerb or off the road): then the known colour."""
     lab8 = cv2.cvtColor(bev_bgr, cv2.COLOR_BGR2LAB)
     lab = lab8.astype(np.int16)
-    h, w = lab.shape[:2]
-    ref = np.median(lab[h - max(2, int(1.2 * p.px_per_m)):, w // 2 - int(0.8 * p.px_per_m): w // 2 + int(0.8 * p.px_per_m)]
-                    .reshape(-1, 3), axis=0)
+    ref = _patch_ahead(lab, p)
     if known is not None and (abs(ref[0] - known[0]) > p.lab_tol[0] or np.abs(ref[1:] - known[1:]).max() > p.lab_tol[1]):
         ref = np.asarray(known)
     ref = np.round(ref).astype(np.int16)
@@ -121,6 +125,24 @@ def road_mask(bev_bgr: np.ndarray, visible: np.ndarray, p: RoadEdgesParams,
     either = cv2.bitwise_or(cv2.bitwise_or(road, lighter), bright)
     road = cv2.morphologyEx(cv2.bitwise_and(either, visible.view(np.uint8)), cv2.MORPH_OPEN, _OPEN) > 0
     return road, (bright > 0) & visible, ref, lab
+
+
+def _patch_ahead(lab: np.ndarray, p: RoadEdgesParams) -> np.ndarray:
+    """Median Lab colour of the bird's-eye patch just ahead of the car."""
+    h, w = lab.shape[:2]
+    return np.median(lab[h - max(2, int(1.2 * p.px_per_m)):, w // 2 - int(0.8 * p.px_per_m): w // 2 + int(0.8 * p.px_per_m)]
+                     .reshape(-1, 3), axis=0)
+
+
+def learned_road_mask(bev_bgr: np.ndarray, visible: np.ndarray, bev: BirdsEye, maps: FrameMaps, p: RoadEdgesParams):
+    """road_mask's outputs from a road model's maps instead of colour rules: (road, paint,
+    the patch ahead's Lab colour, Lab image). Paint lies on the road, so it is road too."""
+    lab = cv2.cvtColor(bev_bgr, cv2.COLOR_BGR2LAB).astype(np.int16)
+    to_bev = bev.image_to_bev_h()
+    paint = maps.warped(maps.marking, to_bev, bev.size) & visible
+    road = maps.warped(maps.road, to_bev, bev.size) | paint
+    road = cv2.morphologyEx(road.view(np.uint8) & visible.view(np.uint8), cv2.MORPH_OPEN, _OPEN) > 0
+    return road, paint, _patch_ahead(lab, p), lab
 
 
 def _box(v) -> tuple[int, int, int]:
@@ -272,12 +294,19 @@ def _follows(hist: list[float], x: float, tol: float, step: float) -> bool:
     return abs(x - pred) <= tol or abs(x - hist[-1]) <= step
 
 
-def carriageway(image_bgr: np.ndarray, cam: Camera, p: RoadEdgesParams, state: RoadEdgesState):
-    """(left, right Boundary | None, width m, new state, road mask uint8 in the image or None)."""
+def carriageway(image_bgr: np.ndarray, cam: Camera, p: RoadEdgesParams, state: RoadEdgesState,
+                maps: FrameMaps | None = None):
+    """(left, right Boundary | None, width m, new state, road mask uint8 in the image or None).
+    With a road model's `maps` of the frame, its road and paint instead of the colour rules (the
+    mask is then the model's road at the frame's size)."""
     h, w = image_bgr.shape[:2]
     bev = _bev(cam, p, state)
     visible = bev.visible() > 0
-    road, bright, ref, lab_img = road_mask(bev.warp(image_bgr[:, :, :3]), visible, p, state.road_lab)
+    bev_bgr = bev.warp(image_bgr[:, :, :3])
+    if maps is None:
+        road, bright, ref, lab_img = road_mask(bev_bgr, visible, p, state.road_lab)
+    else:
+        road, bright, ref, lab_img = learned_road_mask(bev_bgr, visible, bev, maps, p)
     scan = replace(scan_edges(road, visible, bev, p, state.width_m or p.width_m), lab=lab_img)
     left = _fit(np.column_stack([scan.run_l, scan.y])[scan.ok_l], p)
     right = _fit(np.column_stack([scan.run_r, scan.y])[scan.ok_r], p)
@@ -288,7 +317,12 @@ def carriageway(image_bgr: np.ndarray, cam: Camera, p: RoadEdgesParams, state: R
         memory = paint if memory is None else p.paint_memory * memory + (1 - p.paint_memory) * paint
     if good:
         lab = tuple(float(v) for v in (ref if lab is None else 0.9 * np.asarray(lab) + 0.1 * ref))
-    mask = None if left is None and right is None else bev.unwarp(road.astype(np.uint8) * 255, cv2.INTER_NEAREST)
+    if maps is not None:  # the model's road, found or not
+        mask = maps.frame_mask(maps.road, w, h)
+    elif left is None and right is None:
+        mask = None
+    else:
+        mask = bev.unwarp(road.astype(np.uint8) * 255, cv2.INTER_NEAREST)
     return left, right, scan.width_m, RoadEdgesState(scan.width_m, memory, bev, scan, lab), mask
 
 
@@ -325,9 +359,14 @@ def carriageway_estimate(method: str, cam: Camera, left, right, width: float, st
     return replace(est, basis="edges", path_m=path, drivable_mask=mask)
 
 
-def fit_edge(g: np.ndarray, p: RoadEdgesParams):
-    """A carriageway edge fitted to its scanned points (N, 2) ground metres (None: too few)."""
-    return _fit(g, p)
+def right_half_estimate(method: str, cam: Camera, left, right, width: float, mask: np.ndarray | None,
+                        shape: tuple[int, int]) -> LaneEstimate:
+    """The right half of a two-lane carriageway as the lane (where its centre line's paint was
+    not found this frame)."""
+    mid = None if left is None or right is None else Boundary((left.coeffs + right.coeffs) / 2, left.y_range)
+    debug = mask if mask is not None else np.zeros(shape, np.uint8)
+    est = estimate_from_fits(method, cam, mid, right, width / 2, 0.5 if mid is not None else None, debug)
+    return replace(est, basis="edges", drivable_mask=mask)
 
 
 def _fit(g: np.ndarray, p: RoadEdgesParams):
@@ -335,16 +374,6 @@ def _fit(g: np.ndarray, p: RoadEdgesParams):
         return None
     g = g[g[:, 1] <= g[:, 1].min() + p.fit_near_m]  # the near part: where steering looks
     return fit_boundary(g, order=2, min_points=p.min_rows)
-
-
-def centre_paint(bright: np.ndarray, bev: BirdsEye, scan: RoadScan, p: RoadEdgesParams,
-                 memory: float | None) -> float | None:
-    """The running share of the carriageway's middle that shows paint (`bright`: bool bird's-eye
-    paint mask), updated with this frame where it saw both edges well enough."""
-    paint = _centre_paint(bright, bev, scan, p)
-    if paint is None:
-        return memory
-    return paint if memory is None else p.paint_memory * memory + (1 - p.paint_memory) * paint
 
 
 def _centre_paint(bright: np.ndarray, bev: BirdsEye, scan: RoadScan, p: RoadEdgesParams) -> float | None:

@@ -10,6 +10,7 @@ the road). The metadata's class list says which a file is; `marking_probability`
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
@@ -64,6 +65,40 @@ def mask_target(mask: np.ndarray, size: tuple[int, int], min_cover: float = 0.25
     return target
 
 
+def resolve(path: str) -> str:
+    """A config's model value as a file: "" or "shipped" = the shipped signlane/models/lanes.onnx."""
+    return str(DEFAULT_MODEL) if path in ("", "shipped") else path
+
+
+def output_to_frame(shape: tuple[int, int], width: int, height: int) -> np.ndarray:
+    """3x3: model output pixel (centres) -> frame pixel, for an output of `shape` (h, w)."""
+    sx, sy = width / shape[1], height / shape[0]
+    return np.array([[sx, 0.0, 0.5 * sx - 0.5], [0.0, sy, 0.5 * sy - 0.5], [0.0, 0.0, 1.0]])
+
+
+@dataclass(frozen=True)
+class FrameMaps:
+    """A model's maps of one frame at its output size: P(lane marking), P(road surface) (None
+    for a marking model), and `to_frame`, the 3x3 from output pixels to the frame's."""
+
+    marking: np.ndarray
+    road: np.ndarray | None
+    to_frame: np.ndarray
+    threshold: float = MASK_THRESHOLD
+
+    def warped(self, prob: np.ndarray, frame_to_view: np.ndarray, size: tuple[int, int]) -> np.ndarray:
+        """bool mask of `prob` (one of the maps) above the threshold in a view of the frame
+        (`frame_to_view` 3x3, e.g. a bird's-eye view's image_to_bev_h(); size (w, h)): one
+        warp, straight from the output's pixels."""
+        p = cv2.warpPerspective(prob, frame_to_view @ self.to_frame, size, flags=cv2.INTER_LINEAR,
+                                borderMode=cv2.BORDER_CONSTANT)
+        return p > self.threshold
+
+    def frame_mask(self, prob: np.ndarray, width: int, height: int) -> np.ndarray:
+        """uint8 (height, width) 0/255 mask of one of the maps at the frame's size."""
+        return to_frame_mask(prob, width, height, self.threshold)
+
+
 def to_frame_mask(prob: np.ndarray, width: int, height: int, threshold: float = MASK_THRESHOLD) -> np.ndarray:
     """float32 (h, w) P(marking) -> uint8 (height, width) 0/255 mask at the frame's size."""
     up = cv2.resize(prob, (width, height), interpolation=cv2.INTER_LINEAR)
@@ -92,6 +127,13 @@ class LaneSegModel:
     def probabilities(self, frames_bgr: list[np.ndarray]) -> np.ndarray:
         """float32 (N, h, w) P(lane marking) at the model's output size."""
         return marking_probability(self.logits(frames_bgr))
+
+    def frame_maps(self, image_bgr: np.ndarray, threshold: float = MASK_THRESHOLD) -> FrameMaps:
+        """The maps of one uint8 BGR frame (any size), with where they lie in it."""
+        marking, road = self.maps([image_bgr])
+        h, w = image_bgr.shape[:2]
+        return FrameMaps(marking[0], None if road is None else road[0],
+                         output_to_frame(marking.shape[1:], w, h), threshold)
 
     def maps(self, frames_bgr: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray | None]:
         """(P(lane marking), P(road surface) or None for a marking model), each float32 (N, h, w)."""

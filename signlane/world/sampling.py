@@ -23,6 +23,21 @@ from signlane.world.track import RoadStyle, Track
 STYLES = ("painted", "via", "mixed")
 
 
+# the cameras a user may bring (dashcams, phones, robot cars, other simulators): the world preset
+# draws from these ranges, beside cameras near the road style's own
+WORLD_HEIGHT_M = (0.2, 3.0)
+WORLD_PITCH_DEG = (0.0, 25.0)
+WORLD_HFOV_DEG = (50.0, 120.0)
+
+
+def world_camera(rng: np.random.Generator, width: int, height: int) -> Camera:
+    """Any camera a car might carry: height log-uniform over WORLD_HEIGHT_M (as many toy cars'
+    as dashcams'), pitch and horizontal field of view uniform over their ranges."""
+    lo, hi = np.log(WORLD_HEIGHT_M)
+    return replace(Camera(width=width, height=height), height_m=float(np.exp(rng.uniform(lo, hi))),
+                   pitch_deg=float(rng.uniform(*WORLD_PITCH_DEG)), hfov_deg=float(rng.uniform(*WORLD_HFOV_DEG)))
+
+
 def random_camera(rng: np.random.Generator, width: int, height: int, wide: float = 1.0,
                   style: str = "painted") -> Camera:
     """A plausible small-car camera: FOV 60-100 deg, 0.9-1.8 m high, pitched 4-18 deg down
@@ -58,11 +73,17 @@ class SamplerConfig:
     camera_spread: float = 1.0  # scales random_camera's spread of FOV, height and pitch
     wide_prob: float = 0.0  # chance a frame is 16:9 (same width, fewer rows) instead of width x height
     style: str = "painted"  # painted (lanes and lines) | via (VIA's kerbed road) | mixed (half each, per track)
+    world_cameras: float = 0.0  # share of frames whose camera is any car's (world_camera) rather than near the style's
 
 
 # training sets that must generalise past the renderer: wild effects, strong wear and shadows,
 # cameras spread half as far again, a third of the frames wide
 HEAVY = dict(effects="wild", looks_strength=2.5, camera_spread=1.5, wide_prob=0.3)
+# and for models that meet cameras nobody measured: besides, two frames in three from any camera
+# (0.2-3 m high, pitched 0-25 degrees down, 50-120 degrees across). A frame's pixel count matters
+# little to a model that sees every frame resized to its input; its aspect and its camera do
+WORLD = dict(HEAVY, world_cameras=2 / 3)
+PRESETS = {"default": {}, "heavy": HEAVY, "world": WORLD}
 
 
 class FrameSampler:
@@ -104,6 +125,8 @@ class FrameSampler:
         self._prepare(index // cfg.frames_per_track)
         rng = np.random.default_rng([self.seed, index, 2])
         camera = random_camera(rng, cfg.width, cfg.height, cfg.camera_spread if cfg.randomise else 0.0, self._kind)
+        if cfg.world_cameras and rng.random() < cfg.world_cameras:  # drawn only when enabled, as wide_prob
+            camera = world_camera(rng, cfg.width, cfg.height)
         if cfg.wide_prob and rng.random() < cfg.wide_prob:  # drawn only when enabled: older sets keep their pixels
             camera = camera.with_size(cfg.width, max(16, round(cfg.width * 9 / 16)))
         route = self._route
