@@ -11,6 +11,7 @@ ran, the real-time minus lockstep difference per measure.
     python benchmarks/closed_loop.py [--style via painted] [--seeds 20] [--first-seed 0]
                                      [--modes lockstep realtime] [--jobs 1] [--out DIR] [--random-looks]
                                      [--pilot [LABEL=]FILE ...] [--no-teacher] [--looks default random]
+                                     [--set KEY=VALUE ...]
 
 With --pilot the same tracks are driven by each pilot as well (`--set pilot.model=FILE`: the
 pilot steers, the planner keeps speed, stops and exits), one row per driver: "teacher" (the
@@ -76,8 +77,7 @@ def _run(job: tuple) -> dict:
     rep["wall_s"] = round(time.perf_counter() - t0, 1)
     rep["track"], rep["run"], rep["style"], rep["driver"] = _label(name), mode, style, driver
     rep["looks"] = "random" if random_looks else "default"
-    if driver != "teacher":
-        rep["pilot"] = list(sets)
+    rep["settings"] = list(sets)
     return rep
 
 
@@ -135,16 +135,21 @@ def main() -> None:
                     help="who steers through planned junctions when a pilot drives: the planner's path "
                          "(default, as the config's pilot.junctions) or the pilot told the exit")
     ap.add_argument("--no-teacher", action="store_true", help="with --pilot: skip the teacher's rows")
+    ap.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=VALUE",
+                    help="a config setting for every driver, as `signlane sim --set` (repeatable), e.g. "
+                         "lanes.model=runs/road/lanes.onnx to drive on a road model's road")
     ap.add_argument("--out", type=Path, help="per-run report.json and path.png, plus summary.json")
     a = ap.parse_args()
     # `kill` (SIGTERM) unwinds like Ctrl-C, so the pool's `with` terminates its workers instead of
     # leaving them driving (and writing to this run's log) after it
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(128 + signal.SIGTERM))
     looks = a.looks or (["random"] if a.random_looks else ["default"])
-    drivers = [] if a.no_teacher and a.pilot else [("teacher", ())]
+    base = tuple(a.sets)
+    drivers = [] if a.no_teacher and a.pilot else [("teacher", base)]
     for spec in a.pilot:
         label, _, path = spec.rpartition("=")
-        drivers.append((label or Path(path).stem, (f"pilot.model={path}", f"pilot.junctions={a.pilot_junctions}")))
+        drivers.append((label or Path(path).stem,
+                        base + (f"pilot.model={path}", f"pilot.junctions={a.pilot_junctions}")))
     summary = {}
     all_rows = []
     for style in a.style:

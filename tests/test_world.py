@@ -423,3 +423,20 @@ def test_the_map_pictures_start_dot_is_where_the_car_starts_not_where_the_lap_be
         return (np.abs(near - (0, 255, 0)).sum(axis=1) < 60).sum()
 
     assert green_near(start) > 10 and green_near(lap[0]) == 0
+
+
+@pytest.mark.parametrize("style", ["painted", "via"])
+def test_a_camera_low_over_the_road_sees_road_to_the_bottom_of_the_frame(style):
+    """A toy car's camera, 0.2 m up pitched 25 degrees down with a wide lens, sees the ground
+    0.1 m ahead at its bottom row: road there, in the picture and in the truth (the ground nearer
+    than a fixed near plane used to be left unpainted: verge in the picture and not road in the
+    truth, right under the car)."""
+    track = bundled_map("loop_demo", style=style)
+    route, renderer = Route.loop(track), Renderer(build_scene(track, seed=3))
+    cam = Camera(width=320, height=240, height_m=0.2, pitch_deg=25.0, hfov_deg=110.0)
+    smp = renderer.render_on_route(route, _straight_s(route), cam)
+    road = smp.truth.drivable_mask > 0
+    assert road[-20:, 100:220].all()  # the bottom rows ahead of the car are road
+    near = smp.image[-20:, 100:220].reshape(-1, 3).mean(0)
+    mid = smp.image[150:170, 140:180].reshape(-1, 3).mean(0)  # road a little further on
+    assert np.abs(near - mid).max() < 25, (near, mid)  # and look like it

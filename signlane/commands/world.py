@@ -40,7 +40,7 @@ def add_gen(sub) -> None:
     lanes.add_argument("--preset", choices=["default", "heavy", "world"], default="default",
                        help="heavy: wild effects, strong wear and shadows, wider camera spread, a third of the "
                             "frames 16:9 (for lane-segmentation training; overrides --effects); world: heavy, "
-                            "and two frames in three from any camera (0.2-3 m high, pitched 0-25 degrees, "
+                            "and half the frames from any camera (0.2-3 m high, pitched 0-25 degrees, "
                             "50-120 degrees field of view: for road models that meet unmeasured cameras)")
     lanes.add_argument("--drivable", action="store_true",
                        help="also write drivable/<id>.png (class ids: 1 road surface, 0 not)")

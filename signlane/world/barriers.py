@@ -11,7 +11,7 @@ import numpy as np
 
 from signlane.camera import Camera
 
-NEAR_M = 0.3
+NEAR_M = 0.05  # as the road renderer's
 RANGE_M = 60.0
 
 

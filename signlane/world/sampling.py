@@ -79,10 +79,10 @@ class SamplerConfig:
 # training sets that must generalise past the renderer: wild effects, strong wear and shadows,
 # cameras spread half as far again, a third of the frames wide
 HEAVY = dict(effects="wild", looks_strength=2.5, camera_spread=1.5, wide_prob=0.3)
-# and for models that meet cameras nobody measured: besides, two frames in three from any camera
+# and for models that meet cameras nobody measured: besides, half the frames from any camera
 # (0.2-3 m high, pitched 0-25 degrees down, 50-120 degrees across). A frame's pixel count matters
 # little to a model that sees every frame resized to its input; its aspect and its camera do
-WORLD = dict(HEAVY, world_cameras=2 / 3)
+WORLD = dict(HEAVY, world_cameras=0.5)
 PRESETS = {"default": {}, "heavy": HEAVY, "world": WORLD}
 
 
