@@ -35,12 +35,12 @@ class _TruthModel:
         return FrameMaps(self.paint, self.road, output_to_frame(self.road.shape, w, h), threshold)
 
 
-def _drive(sample, monkeypatch, frames=4):
+def _drive(sample, monkeypatch, frames=4, model_paint=False):
     monkeypatch.setattr(seg_model, "load", lambda path, threads=1: _TruthModel(sample))
     h, w = sample.image.shape[:2]
     cam, state, est = via_camera(w, h), None, None
     for _ in range(frames):  # the car stands: the same frame again
-        est, state = auto(sample.image, cam, AutoParams(model="truth.onnx"), state)
+        est, state = auto(sample.image, cam, AutoParams(model="truth.onnx", model_paint=model_paint), state)
     return est, state
 
 
@@ -54,9 +54,10 @@ def test_kerbed_road_on_a_road_coloured_verge_is_the_models_carriageway(seed, mo
     assert state.road.scan is not None and state.road.scan.road is not None  # junctions read this scan
 
 
+@pytest.mark.parametrize("model_paint", [False, True])
 @pytest.mark.parametrize("seed", [8, 18])
-def test_painted_road_the_colour_rules_cannot_find_keeps_the_right_lane(seed, monkeypatch):
-    est, state = _drive(_start_frame("painted", seed), monkeypatch, frames=6)
+def test_painted_road_the_colour_rules_cannot_find_keeps_the_right_lane(seed, model_paint, monkeypatch):
+    est, state = _drive(_start_frame("painted", seed), monkeypatch, frames=6, model_paint=model_paint)
     assert state.two_lane  # the model's paint shows the centre line
     assert est.found and est.basis == "paint"
     assert abs(est.offset) < 0.1 and abs(est.heading) < 0.05  # the car starts on its lane's centre

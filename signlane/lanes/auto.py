@@ -9,10 +9,13 @@ right half of the carriageway. A wide road without a centre line whose lane line
 clearly narrower than the carriageway: then the lane is that one. `LaneEstimate.basis` says which
 ("edges" or "paint").
 
-With a road model (`model`: `--set lanes.model=FILE`, or `shipped`), the road and the paint are
-the model's (one run of the network per frame) instead of colour rules: the carriageway is
-scanned in its drivable area and the lanes are fitted to its paint; every decision above, and
-the junctions read from the scan, are made the same way.
+With a road model (`model`: `--set lanes.model=FILE`, or `shipped`), the road is the model's
+(one run of the network per frame) instead of colour rules: the carriageway is scanned in its
+drivable area, and the centre line is looked for in its paint and in lines found by their own
+contrast; every decision above, and the junctions read from the scan, are made the same way.
+The lanes are still fitted to sliding-window's own paint binary (`model_paint` fits them to the
+model's paint instead: on faint dashes of looks it was not trained on, the model misses paint
+the contrast rules keep).
 """
 from __future__ import annotations
 
@@ -54,6 +57,7 @@ class AutoParams:
     model: str = ""  # a road model's ONNX file (drivable + marking heads), "shipped" for signlane/models/lanes.onnx;
     # "" = colour rules (no model)
     threads: int = 1  # the road model's onnxruntime threads
+    model_paint: bool = False  # lanes fitted to the model's paint (else to sliding-window's own binary)
 
     @classmethod
     def published(cls) -> "AutoParams":
@@ -132,7 +136,7 @@ def _road_maps(image_bgr: np.ndarray, params: AutoParams) -> seg_model.FrameMaps
 def _paint(image_bgr: np.ndarray, cam: Camera, params: AutoParams, state: SlidingWindowState | None,
            maps: seg_model.FrameMaps | None) -> tuple[LaneEstimate, SlidingWindowState]:
     """The paint method: sliding-window on the frame, or its back-end on the road model's paint."""
-    if maps is None:
+    if maps is None or not params.model_paint:
         return sliding_window(image_bgr, cam, params.paint, state)
     from signlane.lanes.segnet import paint_lane
     return paint_lane(NAME, maps, cam, params.paint, state)
