@@ -8,7 +8,6 @@ from signlane.camera import via_camera
 from signlane.lanes import seg_model
 from signlane.lanes.auto import AutoParams, AutoState, auto
 from signlane.lanes.seg_model import FrameMaps, output_to_frame
-from signlane.onnx_model import ModelError
 from signlane.sim.simulator import SimConfig, Simulator
 from signlane.world.maps import load_track
 
@@ -61,10 +60,3 @@ def test_painted_road_the_colour_rules_cannot_find_keeps_the_right_lane(seed, mo
     assert state.two_lane  # the model's paint shows the centre line
     assert est.found and est.basis == "paint"
     assert abs(est.offset) < 0.1 and abs(est.heading) < 0.05  # the car starts on its lane's centre
-
-
-def test_auto_refuses_a_marking_only_model():
-    """The shipped marking model has no road output: one error naming the file."""
-    frame = np.full((240, 320, 3), 100, np.uint8)
-    with pytest.raises(ModelError, match="lanes.onnx.*road model"):
-        auto(frame, via_camera(320, 240), AutoParams(model="shipped"), None)

@@ -43,6 +43,22 @@ def road_model(tmp_path_factory):
     return root, samples, auto, report, onnx_path, exported
 
 
+@pytest.fixture(scope="module")
+def marking_model(tmp_path_factory):
+    """A marking-only model (the contract before road models), trained 1 epoch on frames
+    without road masks and exported."""
+    from signlane_data.lanes import generate_lanes
+    from signlane_export.lanes import export_lanes
+    from signlane_train.lanes import train_lanes
+    root = tmp_path_factory.mktemp("paint")
+    generate_lanes(root / "paint", 24, seed=6)
+    report = train_lanes([root / "paint"], root / "run", epochs=1, batch_size=8, workers=0, quiet=True,
+                         eval_frames=4, threads=1)
+    path = root / "paint.onnx"
+    export_lanes(report["best_checkpoint"], path)
+    return path
+
+
 def test_drivable_target_is_the_labelled_majority_of_each_cell():
     from signlane_train.lane_data import drivable_target
     road = np.zeros((8, 8), np.uint8)
@@ -52,7 +68,7 @@ def test_drivable_target_is_the_labelled_majority_of_each_cell():
     assert t.tolist() == [[IGNORE, 0, 1, 1], [IGNORE, 0, 1, 1], [0, 0, 1, 1], [0, 0, 1, 1]]
 
 
-def test_road_model_exports_its_two_heads_and_the_old_contract_still_loads(road_model):
+def test_road_model_exports_its_two_heads_and_the_old_contract_still_loads(road_model, marking_model):
     root, _, _, report, onnx_path, exported = road_model
     assert exported["parity_max_abs"] <= 1e-4 and report["parameters"] <= 500_000
     assert 0.0 <= report["val_drivable_iou"] <= 1.0
@@ -64,7 +80,7 @@ def test_road_model_exports_its_two_heads_and_the_old_contract_still_loads(road_
     marking, road = model.maps(frames)
     assert model.has_drivable and marking.shape == road.shape == (3, 120, 160)
     assert np.array_equal(marking, model.probabilities(frames))
-    old = seg_model.LaneSegModel(seg_model.DEFAULT_MODEL)  # the shipped marking-only file
+    old = seg_model.LaneSegModel(marking_model)  # a marking-only file
     m, r = old.maps(frames)
     assert not old.has_drivable and r is None and m.shape == (3, 120, 160)
 
@@ -91,7 +107,7 @@ def test_eval_masks_scores_the_drivable_area(road_model):
     assert "drivable_iou" not in eval_masks(root / "mixed", None, progress=False)  # a marking model has none
 
 
-def test_infer_writes_drivable_masks_where_the_model_has_a_road_output(road_model, tmp_path, capsys):
+def test_infer_writes_drivable_masks_where_the_model_has_a_road_output(road_model, marking_model, tmp_path, capsys):
     _, samples, _, _, onnx_path, _ = road_model
     cv2.imwrite(str(tmp_path / "f.png"), samples[0].image)
     out = tmp_path / "out"
@@ -99,9 +115,9 @@ def test_infer_writes_drivable_masks_where_the_model_has_a_road_output(road_mode
                  str(tmp_path / "f.png"), "--out", str(out), "--save-masks"]) == 0
     road = cv2.imread(str(out / "f_drivable.png"), cv2.IMREAD_UNCHANGED)
     assert road.shape == (240, 320) and road.dtype == np.uint8 and set(np.unique(road)) <= {0, 255}
-    out2 = tmp_path / "out2"  # the shipped marking-only model: no road output, no file
-    assert main(["infer", "--no-progress", "--lanes", "segnet", str(tmp_path / "f.png"), "--out", str(out2),
-                 "--save-masks"]) == 0
+    out2 = tmp_path / "out2"  # a marking-only model: no road output, no file
+    assert main(["infer", "--no-progress", "--lanes", "segnet", "--set", f"lanes.model={marking_model}",
+                 str(tmp_path / "f.png"), "--out", str(out2), "--save-masks"]) == 0
     assert (out2 / "f_lane.png").exists() and not (out2 / "f_drivable.png").exists()
     capsys.readouterr()
 
@@ -157,3 +173,16 @@ def test_segnet_edges_keep_the_right_half_of_a_road_with_a_centre_line():
         if i >= 6:
             errors.append(abs(est.offset - smp.truth.offset) if est.found else 1.0)
     assert state.two_lane and max(errors) < 0.15, errors
+
+
+def test_auto_refuses_a_marking_only_model(marking_model, tmp_path, capsys):
+    """A marking model cannot tell road from verge: auto refuses it in one line naming the file,
+    for a frame as for a drive (`sim --with-driver` exits 2 before driving)."""
+    from signlane.lanes.auto import AutoParams, auto
+    from signlane.onnx_model import ModelError
+    with pytest.raises(ModelError, match=r"paint\.onnx: a lane-marking model .*auto needs a road model"):
+        auto(np.full((240, 320, 3), 100, np.uint8), via_camera(320, 240), AutoParams(model=str(marking_model)), None)
+    assert main(["sim", "--with-driver", "--lockstep", "--no-web", "--max-seconds", "1", "--set",
+                 f"lanes.model={marking_model}", "--out", str(tmp_path / "sim")]) == 2
+    err = [line for line in capsys.readouterr().err.strip().splitlines() if "%|" not in line]  # not the progress bar
+    assert len(err) == 1 and err[0].startswith("signlane sim: error: ") and "paint.onnx" in err[0], err
