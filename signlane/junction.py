@@ -104,8 +104,7 @@ class JunctionDetector:
         with a road model's maps of the frame (seg_model.FrameMaps), where the model sees road or paint."""
         p = self.p
         if maps is not None:
-            to_bev = self.bev.image_to_bev_h()
-            road = maps.warped(maps.road, to_bev, self.bev.size) | maps.warped(maps.marking, to_bev, self.bev.size)
+            road = maps.road_in(self.bev.image_to_bev_h(), self.bev.size)[0]
             return cv2.morphologyEx((road & self.visible).astype(np.uint8) * 255, cv2.MORPH_OPEN, _OPEN_KERNEL)
         lab = cv2.cvtColor(self.bev.warp(image_bgr), cv2.COLOR_BGR2LAB).astype(np.int16)
         y0, y1 = p.y_range_m[0], p.y_range_m[0] + 3.0

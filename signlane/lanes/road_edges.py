@@ -139,12 +139,11 @@ def learned_road_mask(bev_bgr: np.ndarray, visible: np.ndarray, bev: BirdsEye, m
     the patch ahead's Lab colour, Lab image). Paint lies on the road, so it is road too."""
     lab8 = cv2.cvtColor(bev_bgr, cv2.COLOR_BGR2LAB)
     lab = lab8.astype(np.int16)
-    to_bev = bev.image_to_bev_h()
+    road, paint = maps.road_in(bev.image_to_bev_h(), bev.size)
     # paint: the model's, and lines by their own contrast (as without a model): a faint dashed
     # centre line the model misses still tells a two-lane road from a kerbed one
-    paint = (maps.warped(maps.marking, to_bev, bev.size) | (_lines(lab8, p) > 0)) & visible
-    road = maps.warped(maps.road, to_bev, bev.size) | paint
-    road = cv2.morphologyEx(road.view(np.uint8) & visible.view(np.uint8), cv2.MORPH_OPEN, _OPEN) > 0
+    paint = (paint | (_lines(lab8, p) > 0)) & visible
+    road = cv2.morphologyEx((road | paint).view(np.uint8) & visible.view(np.uint8), cv2.MORPH_OPEN, _OPEN) > 0
     return road, paint, _patch_ahead(lab, p), lab
 
 

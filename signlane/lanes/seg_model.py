@@ -94,6 +94,12 @@ class FrameMaps:
                                 borderMode=cv2.BORDER_CONSTANT)
         return p > self.threshold
 
+    def road_in(self, frame_to_view: np.ndarray, size: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+        """(road, paint) bool masks in a view of the frame (as `warped`): paint lies on the road,
+        so the road includes it."""
+        paint = self.warped(self.marking, frame_to_view, size)
+        return self.warped(self.road, frame_to_view, size) | paint, paint
+
     def frame_mask(self, prob: np.ndarray, width: int, height: int) -> np.ndarray:
         """uint8 (height, width) 0/255 mask of one of the maps at the frame's size."""
         return to_frame_mask(prob, width, height, self.threshold)
