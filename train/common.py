@@ -24,6 +24,13 @@ if logging.getLogger().hasHandlers():
         logging.getLogger("lightning").removeHandler(_h)
 
 
+def one_cycle(module: L.LightningModule, opt: torch.optim.Optimizer, max_lr: float, pct_start: float) -> dict:
+    """configure_optimizers' answer for a one-cycle rate: warm up over pct_start of the run's steps,
+    then anneal to near zero, stepped per batch. The rate ends low, so the last epochs settle
+    instead of jumping between minima (the best checkpoint is less a matter of luck)."""
+    total = max(10, int(module.trainer.estimated_stepping_batches))  # OneCycle needs a few steps per phase
+    sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=max_lr, total_steps=total, pct_start=pct_start)
+    return {"optimizer": opt, "lr_scheduler": {"scheduler": sched, "interval": "step"}}
 
 
 def build_trainer(out: Path, epochs: int, monitor: str, mode: str, patience: int, trainer_args: dict | None = None,

@@ -17,6 +17,7 @@ import torch.nn.functional as F
 from torchmetrics.classification import BinaryF1Score, BinaryJaccardIndex
 
 from signlane.label_masks import IGNORE
+from signlane_train.common import one_cycle
 from signlane_train.lane_net import LaneSegNet
 
 
@@ -116,6 +117,4 @@ class LaneTask(L.LightningModule):
 
     def configure_optimizers(self):
         opt = torch.optim.AdamW(self.parameters(), lr=self.hparams.lr, weight_decay=self.hparams.weight_decay)
-        total = max(10, int(self.trainer.estimated_stepping_batches))  # OneCycle needs a few steps per phase
-        sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=self.hparams.lr, total_steps=total, pct_start=0.15)
-        return {"optimizer": opt, "lr_scheduler": {"scheduler": sched, "interval": "step"}}
+        return one_cycle(self, opt, self.hparams.lr, pct_start=0.15)

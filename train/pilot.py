@@ -21,7 +21,8 @@ from signlane_train.run_info import RunInfo
 log = logging.getLogger(__name__)
 
 # S3's recipe for PilotNet; ours trains with a higher rate (batch norm) and a larger batch
-DEFAULTS = {"pilotnet": {"lr": 1e-4, "batch_size": 100}, "small": {"lr": 2e-3, "batch_size": 128}}
+DEFAULTS = {"pilotnet": {"lr": 1e-4, "batch_size": 100, "schedule": "constant"},
+            "small": {"lr": 2e-3, "batch_size": 128, "schedule": "onecycle"}}
 
 
 def spec_of(arch: str):
@@ -33,15 +34,17 @@ def train_pilot(data: list[str | Path], out: str | Path, arch: str = "small", ep
                 val_fraction: float = VAL_FRACTION, patience: int = 5, seed: int = 0, resume: bool = False,
                 trainer_args: dict | None = None, workers: int = 0, quiet: bool = False, threads: int = 0,
                 deterministic: bool = True, augment: AugmentParams | None = AugmentParams(),
-                speed_weight: float = 0.1, balance: float = 0.0) -> dict:
+                speed_weight: float = 0.1, balance: float = 0.0, schedule: str | None = None) -> dict:
     """Train; writes checkpoints/, logs/, tensorboard/, samples/epoch_<k>.png (val steering over
-    time), config.json and report.json. lr and batch_size default per arch (DEFAULTS); balance:
+    time), config.json and report.json. lr, batch_size and the learning-rate schedule default per
+    arch (DEFAULTS); balance:
     the power of the steering-balanced sampler (pilot_data.steering_weights; 0 = uniform)."""
     import lightning as L
     if arch not in DEFAULTS:
         raise ValueError(f"arch {arch!r}: one of {', '.join(DEFAULTS)}")
     lr = DEFAULTS[arch]["lr"] if lr is None else lr
     batch_size = DEFAULTS[arch]["batch_size"] if batch_size is None else batch_size
+    schedule = DEFAULTS[arch]["schedule"] if schedule is None else schedule
     out = Path(out)
     if threads > 0:
         torch.set_num_threads(threads)
@@ -50,11 +53,12 @@ def train_pilot(data: list[str | Path], out: str | Path, arch: str = "small", ep
     spec = spec_of(arch)
     dm = PilotDataModule(data, spec, batch_size, val_fraction, augment, workers, seed, balance)
     dm.setup()
-    task = PilotTask(arch=arch, lr=lr, speed_weight=speed_weight, input_size=(spec.width, spec.height), width=width)
+    task = PilotTask(arch=arch, lr=lr, speed_weight=speed_weight, input_size=(spec.width, spec.height), width=width,
+                     schedule=schedule)
     task.samples_dir = out / "samples"
     info = RunInfo(data, {"arch": arch})
     save_run_config(out, {"task": "pilot", "arch": arch, "data": info.data, "data_hash": info.data_hash,
-                          "epochs": epochs, "batch_size": batch_size, "lr": lr, "width": width,
+                          "epochs": epochs, "batch_size": batch_size, "lr": lr, "schedule": schedule, "width": width,
                           "speed_weight": speed_weight, "balance": balance, "val_fraction": val_fraction, "seed": seed,
                           "deterministic": deterministic, "input": [spec.width, spec.height],
                           "augment": None if augment is None else augment.__dict__,

@@ -9,9 +9,11 @@ import lightning as L
 import torch
 import torch.nn.functional as F
 
+from signlane_train.common import one_cycle
 from signlane_train.pilot_net import PilotNet, SmallPilot
 
 ARCHS = ("pilotnet", "small")
+SCHEDULES = ("constant", "onecycle")
 SPEED_SCALE = 5.0  # m/s: the speed loss is on speed / this (steering is within [-1, 1])
 
 
@@ -25,10 +27,12 @@ def pick_steering(out: torch.Tensor, desire: torch.Tensor) -> torch.Tensor:
 
 class PilotTask(L.LightningModule):
     def __init__(self, arch: str = "pilotnet", lr: float = 1e-4, weight_decay: float = 0.0, speed_weight: float = 0.1,
-                 input_size: tuple[int, int] = (160, 120), width: int = 16):
+                 input_size: tuple[int, int] = (160, 120), width: int = 16, schedule: str = "constant"):
         super().__init__()
         if arch not in ARCHS:
             raise ValueError(f"arch {arch!r}: one of {', '.join(ARCHS)}")
+        if schedule not in SCHEDULES:
+            raise ValueError(f"schedule {schedule!r}: one of {', '.join(SCHEDULES)}")
         self.save_hyperparameters()
         w, h = input_size
         self.net = PilotNet(h, w) if arch == "pilotnet" else SmallPilot(h, w, width)
@@ -82,5 +86,9 @@ class PilotTask(L.LightningModule):
                                    "val frames (the first 600, in order)"))
 
     def configure_optimizers(self):
-        # S3: Adam, lr 1e-4 (ours the same optimiser with a higher rate, which its batch norm takes)
-        return torch.optim.Adam(self.parameters(), lr=self.hparams.lr, weight_decay=self.hparams.weight_decay)
+        # S3: Adam, lr 1e-4, constant (ours the same optimiser with a higher peak rate, which its
+        # batch norm takes, on a one-cycle schedule like the lane and sign nets)
+        opt = torch.optim.Adam(self.parameters(), lr=self.hparams.lr, weight_decay=self.hparams.weight_decay)
+        if self.hparams.schedule == "onecycle":
+            return one_cycle(self, opt, self.hparams.lr, pct_start=0.2)
+        return opt

@@ -7,6 +7,7 @@ from torch import nn
 from torchmetrics.classification import MulticlassAccuracy, MulticlassConfusionMatrix, MulticlassF1Score, MulticlassRecall
 
 from signlane.world.art import SIGN_CLASSES
+from signlane_train.common import one_cycle
 from signlane_train.sign_net import SignNet
 
 
@@ -61,6 +62,4 @@ class SignTask(L.LightningModule):
 
     def configure_optimizers(self):
         opt = torch.optim.AdamW(self.parameters(), lr=self.hparams.lr, weight_decay=self.hparams.weight_decay)
-        total = max(10, int(self.trainer.estimated_stepping_batches))  # OneCycle needs a few steps per phase
-        sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=self.hparams.lr, total_steps=total, pct_start=0.2)
-        return {"optimizer": opt, "lr_scheduler": {"scheduler": sched, "interval": "step"}}
+        return one_cycle(self, opt, self.hparams.lr, pct_start=0.2)

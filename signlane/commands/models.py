@@ -82,7 +82,11 @@ def _add_train_pilot(kinds, lightning_flags: bool) -> None:
     pilot.add_argument("--epochs", type=positive, default=15, help="maximum epochs (default 15)")
     pilot.add_argument("--batch-size", type=positive, default=None,
                        help="batch size (default: 100 for pilotnet as S3, 128 for small)")
-    pilot.add_argument("--lr", type=float, default=None, help="Adam learning rate (default: 1e-4 pilotnet, 2e-3 small)")
+    pilot.add_argument("--lr", type=float, default=None,
+                       help="Adam learning rate, the peak of a one-cycle schedule (default: 1e-4 pilotnet, 2e-3 small)")
+    pilot.add_argument("--schedule", choices=["constant", "onecycle"], default=None,
+                       help="learning rate over the run: constant (S3's, pilotnet's default) or onecycle (warm-up, "
+                            "then annealed to near zero by the last epoch; small's default)")
     pilot.add_argument("--width", type=positive, default=16, help="channels of small's first conv (default 16)")
     pilot.add_argument("--speed-weight", type=float, default=0.1, help="small: weight of the speed loss (default 0.1)")
     pilot.add_argument("--flip", type=float, default=0.5, help="probability of a mirrored frame (default 0.5)")
@@ -200,7 +204,8 @@ def _run_train(args) -> int:
         if not 0 <= opts["balance"] <= 1:
             raise UserError(f"--balance {opts['balance']}: must be within 0..1")
         train, own = train_pilot, dict(arch=opts["arch"], speed_weight=opts["speed_weight"], augment=aug,
-                                       val_fraction=opts["val_fraction"], balance=opts["balance"])
+                                       val_fraction=opts["val_fraction"], balance=opts["balance"],
+                                       schedule=opts["schedule"])
     elif args.kind == "lanes":
         train, own = train_lanes, dict(pos_weight=opts["pos_weight"])
     else:
