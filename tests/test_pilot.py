@@ -188,6 +188,30 @@ def test_the_balancing_sampler_draws_rare_bends_as_often_as_straight_road():
     assert half[:900].sum() / half[900:].sum() == pytest.approx(3.0)  # sqrt(900 / 100)
 
 
+def test_our_pilot_warms_up_then_anneals_its_rate_while_pilotnet_keeps_s3s_constant_rate():
+    from types import SimpleNamespace
+
+    import torch
+
+    from signlane_train.common import one_cycle
+    from signlane_train.pilot_task import PilotTask
+    net = torch.nn.Linear(2, 1)
+    opt = torch.optim.Adam(net.parameters(), lr=2e-3)
+    sched = one_cycle(SimpleNamespace(trainer=SimpleNamespace(estimated_stepping_batches=100)), opt, 2e-3,
+                      pct_start=0.2)["lr_scheduler"]["scheduler"]
+    rates = []
+    for _ in range(100):
+        rates.append(opt.param_groups[0]["lr"])
+        opt.step()
+        sched.step()
+    assert rates[0] < 2e-4 and max(rates) == pytest.approx(2e-3) and int(np.argmax(rates)) in range(18, 22)
+    assert rates[-1] < 1e-5  # the last epoch trains at a rate near zero: it settles
+    pilotnet = PilotTask(arch="pilotnet", lr=1e-4, input_size=(160, 120)).configure_optimizers()
+    assert isinstance(pilotnet, torch.optim.Adam) and pilotnet.param_groups[0]["lr"] == 1e-4  # S3 as published
+    with pytest.raises(ValueError, match="schedule 'cosine'"):
+        PilotTask(arch="small", schedule="cosine")
+
+
 def test_desire_follows_the_planned_exit_and_picks_the_branch():
     assert desire_of("junction-left") == "left" and desire_of("junction-right") == "right"
     assert desire_of("cruise") == desire_of("stopped") == desire_of("junction-straight") == "straight"
