@@ -212,6 +212,23 @@ def test_our_pilot_warms_up_then_anneals_its_rate_while_pilotnet_keeps_s3s_const
         PilotTask(arch="small", schedule="cosine")
 
 
+def test_frames_load_alike_on_one_thread_or_many_and_an_unreadable_one_is_named(tmp_path):
+    from signlane.pilot import PilotFrame
+    from signlane_train.pilot_data import load_frames
+    rng = np.random.default_rng(1)
+    items = []
+    for k in range(9):
+        path = tmp_path / f"{k}.jpg"
+        cv2.imwrite(str(path), rng.integers(0, 256, (48, 64, 3), np.uint8))
+        items.append(PilotFrame(path, 0.0, "straight", 5.0, 0.0, "d", f"d/{k}"))
+    one, many = load_frames(items, (32, 24), threads=1), load_frames(items, (32, 24), threads=4)
+    assert one.shape == (9, 24, 32, 3) and np.array_equal(one, many)
+    assert np.array_equal(one[4], cv2.resize(cv2.imread(str(items[4].image)), (32, 24), interpolation=cv2.INTER_AREA))
+    (tmp_path / "5.jpg").write_bytes(b"not a jpeg")
+    with pytest.raises(ValueError, match=r"5\.jpg: unreadable"):
+        load_frames(items, (32, 24), threads=4)
+
+
 def test_desire_follows_the_planned_exit_and_picks_the_branch():
     assert desire_of("junction-left") == "left" and desire_of("junction-right") == "right"
     assert desire_of("cruise") == desire_of("stopped") == desire_of("junction-straight") == "straight"
