@@ -37,8 +37,8 @@ def train_pilot(data: list[str | Path], out: str | Path, arch: str = "small", ep
                 speed_weight: float = 0.1, balance: float = 0.0, schedule: str | None = None) -> dict:
     """Train; writes checkpoints/, logs/, tensorboard/, samples/epoch_<k>.png (val steering over
     time), config.json and report.json. lr, batch_size and the learning-rate schedule default per
-    arch (DEFAULTS); balance:
-    the power of the steering-balanced sampler (pilot_data.steering_weights; 0 = uniform)."""
+    arch (DEFAULTS); balance: the power of the steering-balanced sampler
+    (pilot_data.steering_weights; 0 = uniform)."""
     import lightning as L
     if arch not in DEFAULTS:
         raise ValueError(f"arch {arch!r}: one of {', '.join(DEFAULTS)}")

@@ -83,7 +83,7 @@ def _add_train_pilot(kinds, lightning_flags: bool) -> None:
     pilot.add_argument("--batch-size", type=positive, default=None,
                        help="batch size (default: 100 for pilotnet as S3, 128 for small)")
     pilot.add_argument("--lr", type=float, default=None,
-                       help="Adam learning rate, the peak of a one-cycle schedule (default: 1e-4 pilotnet, 2e-3 small)")
+                       help="Adam learning rate, the peak with --schedule onecycle (default: 1e-4 pilotnet, 2e-3 small)")
     pilot.add_argument("--schedule", choices=["constant", "onecycle"], default=None,
                        help="learning rate over the run: constant (S3's, pilotnet's default) or onecycle (warm-up, "
                             "then annealed to near zero by the last epoch; small's default)")
