@@ -349,13 +349,16 @@ def _opening(scan, rows: np.ndarray, beyond: np.ndarray, view: np.ndarray, ok: n
     if len(rows) == 0:
         return None
     step = float(np.median(np.abs(np.diff(scan.y)))) if len(scan.y) > 1 else 0.125
-    end = 0
-    while end + 1 < len(rows) and (rows[end + 1] - rows[end]) * step <= p.row_gap_m:
-        end += 1
-    group = rows[: end + 1]
-    near, far = float(scan.y[group[0]]), float(scan.y[group[-1]])
-    if far - near < p.min_open_m and group[-1] < len(scan.y) - 1:
-        return None if end + 1 >= len(rows) else _opening(scan, rows[end + 1:], beyond, view, ok, p, sgn)
+    # the groups of rows no further apart than row_gap_m: the first long enough (or reaching the
+    # scan's end) is the opening
+    gaps = np.flatnonzero(np.diff(rows) * step > p.row_gap_m).tolist()
+    for first, last in zip([0] + [g + 1 for g in gaps], gaps + [len(rows) - 1]):
+        near, far = float(scan.y[rows[first]]), float(scan.y[rows[last]])
+        if far - near >= p.min_open_m or rows[last] == len(scan.y) - 1:
+            break
+    else:
+        return None
+    group = rows[first: last + 1]
     after = np.flatnonzero(ok[group[-1] + 1:])
     resumed = bool(len(after) and scan.y[group[-1] + 1 + after[0]] - far <= p.resume_m)
     if resumed:  # and back in line with the edge before the opening: a side road, not a bend
@@ -437,19 +440,23 @@ def _row_reaches(scan, us: np.ndarray, vs: np.ndarray, sgn: float, verge: np.nda
     np.cumsum(verge_px, axis=1, out=runs[:, 1:])
     full = (runs[:, n:] - runs[:, :-n]) == n
     road_vis = road & vis
+    # per row, at once: the last pixel seen, where the first verge stretch starts, the last road
+    # pixel before it, and the last road pixel of all (argmax finds the first True)
+    last_seen = w - 1 - np.argmax(vis[:, ::-1], axis=1)
+    has_start = full.any(axis=1)
+    before = road_vis & (np.arange(w)[None, :] < np.argmax(full, axis=1)[:, None])
+    last_before = w - 1 - np.argmax(before[:, ::-1], axis=1)
+    last_road = w - 1 - np.argmax(road_vis[:, ::-1], axis=1)
     out = []
-    for i in range(len(cols)):
-        seen = np.flatnonzero(vis[i])
-        if len(seen) == 0:
+    for seen, start, any_before, end, any_road, last, top in zip(
+            vis.any(axis=1).tolist(), has_start.tolist(), before.any(axis=1).tolist(), last_before.tolist(),
+            road_vis.any(axis=1).tolist(), last_road.tolist(), last_seen.tolist()):
+        if not seen:
             out.append(("unknown", 0.0))
-            continue
-        road_at = np.flatnonzero(road_vis[i])
-        start = np.flatnonzero(full[i])
-        if len(start):
-            before = road_at[road_at < start[0]]
-            out.append(("end", float(before[-1] + 1) / k) if len(before) else ("unknown", 0.0))
-        elif len(road_at) and int(seen[-1]) - road_at[-1] <= 0.5 * k:
-            out.append(("on", float(road_at[-1]) / k))
+        elif start:
+            out.append(("end", float(end + 1) / k) if any_before else ("unknown", 0.0))
+        elif any_road and top - last <= 0.5 * k:
+            out.append(("on", float(last) / k))
         else:
             out.append(("unknown", 0.0))
     return out
