@@ -282,6 +282,39 @@ def test_busy_driver_answers_every_frame_at_once_without_backlog(frames):
     assert srv.totals["perceive_ms_median"] >= 0 and srv.totals["answer_ms_p99"] >= srv.totals["answer_ms_median"]
 
 
+class AfterAnswerDriver(SlowDriver):
+    """Puts work off until its answer is out (answered()), as the drive stack does; the work of
+    the frame at 7 m/s fails."""
+
+    def __init__(self):
+        super().__init__(0.0)
+        self.log = []
+
+    def step(self, t):
+        self.log.append(("step", t.speed_mps))
+        self.speed = t.speed_mps
+        return super().step(t)
+
+    def answered(self):
+        time.sleep(0.05)  # slower than the round trip: the next frame must wait for it
+        self.log.append(("after", self.speed))
+        if abs(self.speed - 7.0) < 1e-3:
+            raise RuntimeError("settle failed")
+
+
+def test_the_drivers_work_after_an_answer_runs_before_the_next_frame_and_a_failure_is_reported(frames, caplog):
+    drivers = []
+    with DriveServer(options=ServerOptions(port=0), driver_factory=lambda: drivers.append(AfterAnswerDriver())
+                     or drivers[-1]) as srv:
+        with caplog.at_level(logging.WARNING), connect(srv.url) as ws:
+            for speed in (5.0, 7.0, 9.0):  # lockstep: each frame right after the last answer
+                assert ask(ws, tel(frames[0], speed=speed)) == {"throttle": 0.5, "steering": 0.25}
+    log = [(what, round(speed, 3)) for what, speed in drivers[-1].log]  # (drivers[0]: the start-up probe's)
+    assert log[:5] == [("step", 5.0), ("after", 5.0), ("step", 7.0), ("after", 7.0), ("step", 9.0)]
+    assert srv.totals["processed"] == 3 and srv.totals["skipped"] == 0  # none answered from the latest
+    assert any("driver failed after its answer: RuntimeError: settle failed" in r.getMessage() for r in caplog.records)
+
+
 def test_record_writes_a_readable_dataset(frames, messages, tmp_path):
     rec, show = tmp_path / "rec", tmp_path / "show"
     opts = ServerOptions(port=0, record=rec, show_every=2, show_dir=show)

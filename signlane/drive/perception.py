@@ -108,6 +108,13 @@ class PerceptionStack:
         found, confirmed, at = self._worker.latest()
         return tuple(found), confirmed, at
 
+    def answered(self) -> None:
+        """The last frame's command is out: the work put off until then (the lane method's, the
+        sign search of the frame with signs beside the lane path)."""
+        self.release_signs()
+        if self.lane is not None:
+            self.lane.settle()
+
     def release_signs(self) -> None:
         """Hand the frame held back by `signs_now` to the sign worker: call it once the frame's
         command is out. The worker then searches in the gap before the next frame instead of

@@ -109,9 +109,10 @@ class DriveStack:
         return Perception(frame, lane, signs, timing), Command(steering, throttle, state)
 
     def answered(self) -> None:
-        """The last frame's command has been sent: with signs beside the lane path, their search
-        of that frame starts now (if never called, it starts with the next frame)."""
-        self.perception.release_signs()
+        """The last frame's command has been sent: the work put off until then is done now (if
+        never called, with the next frame): the lane method's (auto's look for lane paint on a
+        kerbed road), and with signs beside the lane path their search of that frame starts."""
+        self.perception.answered()
 
     def _signs(self, image: np.ndarray, pose: OdoPose, small: np.ndarray) -> tuple[SignDetection, ...]:
         found, confirmed, at = self.perception.signs_now(image, pose, small)

@@ -79,6 +79,14 @@ class LaneMethod:
         est, self.state = fn(image_bgr, self.camera, self.params, self.state)
         return est
 
+    def settle(self) -> None:
+        """Work the method put off until the frame's answer was out (a state with a `settle`
+        method, e.g. auto's look for lane paint on a kerbed road); a no-op for the others. The
+        next frame makes it anyway if it was not called."""
+        settle = getattr(self.state, "settle", None)
+        if settle is not None:
+            self.state = settle(self.params)
+
     def reset(self) -> None:
         self.state = None
 

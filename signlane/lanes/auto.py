@@ -7,7 +7,10 @@ lane is the right one, from the paint (`sliding-window`), or, where the paint is
 right half of the carriageway. A wide road without a centre line whose lane lines divide it
 (a highway) is told from a kerbed one by the paint method finding, frame after frame, a lane
 clearly narrower than the carriageway: then the lane is that one. `LaneEstimate.basis` says which
-("edges" or "paint").
+("edges" or "paint"). On a kerbed road the frame's lane is the carriageway, and the look for
+lane paint is made after the frame's answer (`LaneMethod.settle`, which the drive stack calls
+once the command is out; else it is made first thing on the next frame): it decides the lanes of
+the frames after it, not of its own.
 
 With a road model (`model`: `--set lanes.model=FILE`, or `shipped`), the road is the model's
 (one run of the network per frame) instead of colour rules: the carriageway is scanned in its
@@ -53,7 +56,8 @@ class AutoParams:
     settled_below: float = 0.1  # a road whose share is below this is looked at ...
     settled_every: int = 8  # ... every this many frames (a quarter second at 30 frames/s: a highway
     # is still noticed within about 2 s, and the paint method, which costs about as much as the
-    # carriageway again, runs on one frame in eight)
+    # carriageway again, runs on one frame in eight; on a kerbed road it runs after the frame's
+    # answer, see AutoState.settle)
     model: str = ""  # a road model's ONNX file (drivable + marking heads), "shipped" for signlane/models/lanes.onnx;
     # "" = colour rules (no model)
     threads: int = 1  # the road model's onnxruntime threads
@@ -71,13 +75,28 @@ class AutoState:
     lanes_seen: float | None = None  # running share of frames where paint bounded a lane inside the carriageway
     since_check: int = 0  # frames since that was last looked at
     maps: seg_model.FrameMaps | None = None  # the road model's maps of the last frame (junctions read them)
+    # a kerbed road's look for lanes on the last frame, not yet made: (frame, camera, carriageway
+    # width, its scan). The lane that frame gave did not wait on it; it is made by settle(), which
+    # a driver calls once the frame's command is out, or else first thing on the next frame
+    pending: tuple | None = None
 
     @property
     def two_lane(self) -> bool:
         return self.road.two_lane
 
     def forget_tracks(self) -> "AutoState":
-        return AutoState(self.road.forget_tracks(), None, self.lanes_seen, maps=self.maps)
+        return AutoState(self.road.forget_tracks(), None, self.lanes_seen, maps=self.maps, pending=self.pending)
+
+    def settle(self, params: "AutoParams") -> "AutoState":
+        """This state with the pending look for lanes made (itself when none is pending)."""
+        if self.pending is None:
+            return self
+        image_bgr, cam, width, scan = self.pending
+        est, paint_state = _paint(image_bgr, cam, params, self.paint, self.maps)
+        inside = est.found and est.confidence >= params.lane_confidence and width > 0 \
+            and est.lane_width_m < params.lane_share * width and _road_beside(est, scan, params)
+        return replace(self, paint=paint_state, lanes_seen=_remember(self.lanes_seen, float(inside), params.lane_memory),
+                       since_check=0, pending=None)
 
 
 @register(NAME, AutoParams)
@@ -85,7 +104,7 @@ def auto(image_bgr: np.ndarray, camera: Camera | None, params: AutoParams,
          state: AutoState | None) -> tuple[LaneEstimate, AutoState]:
     image_bgr = image_bgr if image_bgr.ndim == 3 else cv2.cvtColor(image_bgr, cv2.COLOR_GRAY2BGR)
     h, w = image_bgr.shape[:2]
-    state = state or AutoState()
+    state = (state or AutoState()).settle(params)
     if min(h, w) < 16:
         return LaneEstimate(NAME, False, debug_mask=np.zeros((h, w), np.uint8)), state
     cam = camera_for(image_bgr, camera)
@@ -94,24 +113,28 @@ def auto(image_bgr: np.ndarray, camera: Camera | None, params: AutoParams,
     if not road_state.two_lane:
         # no centre line on the carriageway's middle: a kerbed road (VIA's), or a wide road whose
         # lane lines divide it into lanes (a highway), told apart by whether paint bounds a lane
-        # clearly narrower than the carriageway, frame after frame. Once a road has long shown
-        # none, every few frames is enough to notice a change (the paint method costs about as
-        # much as the carriageway again)
-        if state.lanes_seen is not None and state.lanes_seen < params.settled_below \
-                and state.since_check + 1 < params.settled_every:
-            return carriageway_estimate(NAME, cam, left, right, width, road_state, mask, (h, w)), \
-                AutoState(road_state, None, state.lanes_seen, state.since_check + 1, maps)
-        est, paint_state = _paint(image_bgr, cam, params, state.paint, maps)
-        inside = est.found and est.confidence >= params.lane_confidence and width > 0 \
-            and est.lane_width_m < params.lane_share * width and _road_beside(est, road_state.scan, params)
-        lanes_seen = _remember(state.lanes_seen, float(inside), params.lane_memory)
-        if lanes_seen > params.lanes_above:
+        # clearly narrower than the carriageway, frame after frame
+        if state.lanes_seen is None or state.lanes_seen > params.lanes_above:  # a lane road, or none known yet
+            est, paint_state = _paint(image_bgr, cam, params, state.paint, maps)
+            inside = est.found and est.confidence >= params.lane_confidence and width > 0 \
+                and est.lane_width_m < params.lane_share * width and _road_beside(est, road_state.scan, params)
+            lanes_seen = _remember(state.lanes_seen, float(inside), params.lane_memory)
+            if lanes_seen <= params.lanes_above:  # no lanes on this road after all
+                return carriageway_estimate(NAME, cam, left, right, width, road_state, mask, (h, w)), \
+                    AutoState(road_state, paint_state, lanes_seen, maps=maps)
             if est.found:
                 return replace(est, method=NAME, basis="paint", drivable_mask=mask), \
                     AutoState(road_state, paint_state, lanes_seen, maps=maps)
             return replace(est, method=NAME), AutoState(road_state, paint_state, lanes_seen, maps=maps)
-        return carriageway_estimate(NAME, cam, left, right, width, road_state, mask, (h, w)), \
-            AutoState(road_state, paint_state, lanes_seen, maps=maps)
+        # the carriageway is the lane; whether paint divides it is looked at after this frame's
+        # answer (AutoState.settle: the paint method costs about as much as the carriageway
+        # again), and once a road has long shown none, on one frame in settled_every
+        whole = carriageway_estimate(NAME, cam, left, right, width, road_state, mask, (h, w))
+        if state.lanes_seen is not None and state.lanes_seen < params.settled_below \
+                and state.since_check + 1 < params.settled_every:
+            return whole, AutoState(road_state, None, state.lanes_seen, state.since_check + 1, maps)
+        return whole, AutoState(road_state, state.paint, state.lanes_seen, maps=maps,
+                                pending=(image_bgr, cam, width, road_state.scan))
     est, paint_state = _paint(image_bgr, cam, params, state.paint, maps)
     if est.found:
         return replace(est, method=NAME, basis="paint", drivable_mask=mask), \

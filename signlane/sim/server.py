@@ -143,6 +143,7 @@ class _Connection:
         self.driver = None
         self.latest = SAFE_COMMAND  # answer for frames that arrive while the driver is busy
         self.job: asyncio.Task | None = None
+        self.after: asyncio.Future | None = None  # the driver's work once an answer is out (answered())
         self.frames = self.driven = 0
         self.closed = False  # set once the client is gone: work not yet driven is dropped
 
@@ -165,6 +166,8 @@ class _Connection:
             self.closed = True
             if self.job is not None:
                 await asyncio.gather(self.job, return_exceptions=True)  # never close a driver mid-step
+            if self.after is not None:
+                await asyncio.gather(self.after, return_exceptions=True)
             if self.driver is not None:
                 self.driver.close()
             self.server.errors.flush(who=f"client {self.cid}")
@@ -194,6 +197,7 @@ class _Connection:
 
     async def drive(self, message: str | bytes, t_recv: float) -> None:
         loop = asyncio.get_running_loop()
+        await self.after_answer()
         try:
             res = await loop.run_in_executor(self.server.pool, self.work, message)
         except SignStageError as e:  # the car must not drive on without the signs it was asked to obey
@@ -215,7 +219,9 @@ class _Connection:
         latency = await self.send(res.answer, t_recv)
         answered = getattr(self.driver, "answered", None)
         if answered is not None:
-            answered()  # the sign search of this frame may start: steering no longer waits on it
+            # the work the driver put off until the answer was out (the sign search of this frame,
+            # the lane method's) runs in the gap before the next frame, which waits for it
+            self.after = loop.run_in_executor(self.server.pool, answered)
         if not res.error:
             self.keep(res)
             self.driven += 1
@@ -223,6 +229,17 @@ class _Connection:
             if monitor is not None and res.perception is not None and res.perception.frame is not None:
                 monitor.publish(res.perception, res.command, res.telemetry.speed_mps, latency,
                                 getattr(self.driver, "confirmed", ()), f"client {self.cid}")
+
+    async def after_answer(self) -> None:
+        """Wait for the driver's work after the last answer; a failure is reported (the next
+        frame's step makes the work again, and fails there in turn if it still fails)."""
+        after, self.after = self.after, None
+        if after is None:
+            return
+        try:
+            await after
+        except Exception as e:
+            self.server.errors.warning(f"driver failed after its answer: {type(e).__name__}: {e}", who=f"client {self.cid}")
 
     def work(self, message: str | bytes) -> _Result:
         """Runs on a worker thread: decode, perceive, decide."""

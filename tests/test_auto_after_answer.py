@@ -1,0 +1,74 @@
+"""On a kerbed road `auto`'s lane is the carriageway, and its look for lane paint (the paint
+method, which costs about as much as the carriageway again) is made after the frame's answer:
+the frame's lane never waits on it. The look is made on the frame it was put off from, by
+`LaneMethod.settle()` (the drive stack's `answered()`), or else first thing on the next frame,
+so a stream reads the same either way."""
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from signlane import lanes
+from signlane.camera import via_camera
+from signlane.config import Config
+from signlane.drive.stack import DriveStack
+from signlane.lanes import auto as auto_module
+from signlane.world.sampling import DriveSampler, SamplerConfig
+
+
+@pytest.fixture(scope="module")
+def via_frames():
+    """40 consecutive 320x240 frames of a drive on VIA's kerbed carriageway (default look)."""
+    sampler = DriveSampler(7, SamplerConfig(320, 240, style="via", effects="normal", randomise=False))
+    return [sampler.sample(i).image for i in range(40)]
+
+
+def _counting_paint(monkeypatch):
+    calls = []
+    real = auto_module._paint
+    monkeypatch.setattr(auto_module, "_paint", lambda *a: calls.append(1) or real(*a))
+    return calls
+
+
+def test_the_kerbed_roads_look_for_paint_waits_for_the_answer(via_frames, monkeypatch):
+    calls = _counting_paint(monkeypatch)
+    lane = lanes.get("auto", camera=via_camera(320, 240))
+    est = lane(via_frames[0])
+    assert calls == [1]  # nothing known of the road yet: the first frame looks at once
+    assert est.found and est.basis == "edges" and lane.state.pending is None
+    deferred = 0
+    for img in via_frames[1:]:
+        calls.clear()
+        est = lane(img)
+        assert calls == [] and est.basis == "edges"  # the frame's lane did not wait on the paint method
+        if lane.state.pending is not None:
+            deferred += 1
+            lane.settle()  # the answer is out: now it looks
+            assert calls == [1] and lane.state.pending is None
+    assert deferred == 4  # a road long without lanes is looked at on one frame in eight: 8, 16, 24, 32
+
+
+def test_a_stream_reads_the_same_settled_after_each_answer_or_on_the_next_frame(via_frames):
+    cam = via_camera(320, 240)
+    a, b = lanes.get("auto", camera=cam), lanes.get("auto", camera=cam)
+    for img in via_frames:
+        ea, eb = a(img), b(img)
+        a.settle()  # b settles inside its next call
+        assert ea.offset == eb.offset and ea.basis == eb.basis and ea.found == eb.found
+    b.settle()
+    assert a.state.lanes_seen == b.state.lanes_seen and a.state.since_check == b.state.since_check
+
+
+def test_the_drive_stack_settles_the_lane_method_when_its_answer_is_out(via_frames, monkeypatch):
+    calls = _counting_paint(monkeypatch)
+    stack = DriveStack(Config.load(None, ["signs.enabled=false"]))
+    looked = []
+    for i, img in enumerate(via_frames[:17]):
+        stack.drive(cv2.resize(img, (640, 480)), 3.0, 0.0, i / 30)
+        calls.clear()
+        stack.answered()
+        assert stack.perception.lane.state.pending is None
+        looked += [i] * len(calls)  # the look put off by this frame, made now
+    assert looked == [8, 16]  # (frame 0 looked at once: nothing was known of the road)
+    assert np.isfinite(stack.perception.lane.state.lanes_seen)
