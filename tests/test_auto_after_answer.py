@@ -72,3 +72,29 @@ def test_the_drive_stack_settles_the_lane_method_when_its_answer_is_out(via_fram
         looked += [i] * len(calls)  # the look put off by this frame, made now
     assert looked == [8, 16]  # (frame 0 looked at once: nothing was known of the road)
     assert np.isfinite(stack.perception.lane.state.lanes_seen)
+
+
+def test_the_lanes_are_those_of_the_look_made_at_once_with_tracks_forgotten_between(monkeypatch):
+    """On a drive whose share of lane sightings wanders from 0 to above the bar (random looks:
+    paint-like shadows), with the tracks forgotten after every eleventh frame (a junction crossed):
+    put off or not, the same lanes and the same state."""
+    sampler = DriveSampler(4, SamplerConfig(320, 240, style="via", effects="normal"))
+    frames = [sampler.sample(i).image for i in range(130)]
+    calls = _counting_paint(monkeypatch)
+    cam = via_camera(320, 240)
+    late, now = lanes.get("auto", camera=cam), lanes.get("auto", camera=cam)
+    deferred, seen = 0, []
+    for i, img in enumerate(frames):
+        a = late(img)
+        deferred += late.state.pending is not None
+        b = now(img)
+        now.settle()  # the look made during the frame, before anything else: as it was
+        if i % 11 == 10:
+            late.state = late.state.forget_tracks()
+            now.state = now.state.forget_tracks()
+        late.settle()
+        assert (a.found, a.basis, a.offset, a.lane_width_m) == (b.found, b.basis, b.offset, b.lane_width_m), i
+        assert late.state.lanes_seen == now.state.lanes_seen and (late.state.paint is None) == (now.state.paint is None)
+        seen.append(now.state.lanes_seen)
+    assert deferred >= 20 and max(seen) > 0.7  # both paths ran: put off, and at once near the bar
+    assert calls  # the paint method did run

@@ -7,10 +7,11 @@ lane is the right one, from the paint (`sliding-window`), or, where the paint is
 right half of the carriageway. A wide road without a centre line whose lane lines divide it
 (a highway) is told from a kerbed one by the paint method finding, frame after frame, a lane
 clearly narrower than the carriageway: then the lane is that one. `LaneEstimate.basis` says which
-("edges" or "paint"). On a kerbed road the frame's lane is the carriageway, and the look for
-lane paint is made after the frame's answer (`LaneMethod.settle`, which the drive stack calls
-once the command is out; else it is made first thing on the next frame): it decides the lanes of
-the frames after it, not of its own.
+("edges" or "paint"). Where one look for lane paint cannot make a kerbed road a lane road on
+its frame (the running share is too low for one more sighting to lift it over the bar), the
+frame's lane is the carriageway whatever the look finds, and the look is made after the frame's
+answer (`LaneMethod.settle`, which the drive stack calls once the command is out; else first
+thing on the next frame): the lanes are the same as with the look made at once.
 
 With a road model (`model`: `--set lanes.model=FILE`, or `shipped`), the road is the model's
 (one run of the network per frame) instead of colour rules: the carriageway is scanned in its
@@ -56,8 +57,7 @@ class AutoParams:
     settled_below: float = 0.1  # a road whose share is below this is looked at ...
     settled_every: int = 8  # ... every this many frames (a quarter second at 30 frames/s: a highway
     # is still noticed within about 2 s, and the paint method, which costs about as much as the
-    # carriageway again, runs on one frame in eight; on a kerbed road it runs after the frame's
-    # answer, see AutoState.settle)
+    # carriageway again, runs on one frame in eight, after the frame's answer: AutoState.settle)
     model: str = ""  # a road model's ONNX file (drivable + marking heads), "shipped" for signlane/models/lanes.onnx;
     # "" = colour rules (no model)
     threads: int = 1  # the road model's onnxruntime threads
@@ -69,34 +69,46 @@ class AutoParams:
 
 
 @dataclass(frozen=True)
+class _Look:
+    """A kerbed road's look for lane paint on a frame, put off until the frame's answer is out."""
+
+    image_bgr: np.ndarray
+    camera: Camera
+    width_m: float  # the carriageway's measured width
+    scan: object  # its RoadScan
+    paint: SlidingWindowState | None  # the paint method's state to look with
+    forgot: bool = False  # the tracks were forgotten after the frame (the paint state goes after the look)
+
+
+@dataclass(frozen=True)
 class AutoState:
     road: RoadEdgesState = field(default_factory=RoadEdgesState)
     paint: SlidingWindowState | None = None
     lanes_seen: float | None = None  # running share of frames where paint bounded a lane inside the carriageway
     since_check: int = 0  # frames since that was last looked at
     maps: seg_model.FrameMaps | None = None  # the road model's maps of the last frame (junctions read them)
-    # a kerbed road's look for lanes on the last frame, not yet made: (frame, camera, carriageway
-    # width, its scan). The lane that frame gave did not wait on it; it is made by settle(), which
-    # a driver calls once the frame's command is out, or else first thing on the next frame
-    pending: tuple | None = None
+    # the last frame's look for lane paint, when it was put off: made by settle(), which a driver
+    # calls once the frame's command is out, or else first thing on the next frame
+    pending: _Look | None = None
 
     @property
     def two_lane(self) -> bool:
         return self.road.two_lane
 
     def forget_tracks(self) -> "AutoState":
-        return AutoState(self.road.forget_tracks(), None, self.lanes_seen, maps=self.maps, pending=self.pending)
+        pending = None if self.pending is None else replace(self.pending, forgot=True)
+        return AutoState(self.road.forget_tracks(), None, self.lanes_seen, maps=self.maps, pending=pending)
 
     def settle(self, params: "AutoParams") -> "AutoState":
-        """This state with the pending look for lanes made (itself when none is pending)."""
-        if self.pending is None:
+        """This state with the pending look for lane paint made (itself when none is pending):
+        what the look would have left had it been made during its frame."""
+        look = self.pending
+        if look is None:
             return self
-        image_bgr, cam, width, scan = self.pending
-        est, paint_state = _paint(image_bgr, cam, params, self.paint, self.maps)
-        inside = est.found and est.confidence >= params.lane_confidence and width > 0 \
-            and est.lane_width_m < params.lane_share * width and _road_beside(est, scan, params)
-        return replace(self, paint=paint_state, lanes_seen=_remember(self.lanes_seen, float(inside), params.lane_memory),
-                       since_check=0, pending=None)
+        _, paint_state, lanes_seen = _look(look.image_bgr, look.camera, params, look.paint, self.maps, look.width_m,
+                                           look.scan, self.lanes_seen)
+        return replace(self, paint=None if look.forgot else paint_state, lanes_seen=lanes_seen, since_check=0,
+                       pending=None)
 
 
 @register(NAME, AutoParams)
@@ -114,27 +126,26 @@ def auto(image_bgr: np.ndarray, camera: Camera | None, params: AutoParams,
         # no centre line on the carriageway's middle: a kerbed road (VIA's), or a wide road whose
         # lane lines divide it into lanes (a highway), told apart by whether paint bounds a lane
         # clearly narrower than the carriageway, frame after frame
-        if state.lanes_seen is None or state.lanes_seen > params.lanes_above:  # a lane road, or none known yet
-            est, paint_state = _paint(image_bgr, cam, params, state.paint, maps)
-            inside = est.found and est.confidence >= params.lane_confidence and width > 0 \
-                and est.lane_width_m < params.lane_share * width and _road_beside(est, road_state.scan, params)
-            lanes_seen = _remember(state.lanes_seen, float(inside), params.lane_memory)
-            if lanes_seen <= params.lanes_above:  # no lanes on this road after all
-                return carriageway_estimate(NAME, cam, left, right, width, road_state, mask, (h, w)), \
-                    AutoState(road_state, paint_state, lanes_seen, maps=maps)
+        def whole() -> LaneEstimate:
+            return carriageway_estimate(NAME, cam, left, right, width, road_state, mask, (h, w))
+        # once a road has long shown none, every few frames is enough to notice a change (the
+        # paint method costs about as much as the carriageway again)
+        if state.lanes_seen is not None and state.lanes_seen < params.settled_below \
+                and state.since_check + 1 < params.settled_every:
+            return whole(), AutoState(road_state, None, state.lanes_seen, state.since_check + 1, maps)
+        if state.lanes_seen is not None and _remember(state.lanes_seen, 1.0, params.lane_memory) <= params.lanes_above:
+            # one look cannot make it a lane road on this frame: its lane is the carriageway
+            # whatever the look finds, so the look waits until the frame's answer is out
+            return whole(), AutoState(road_state, state.paint, state.lanes_seen, maps=maps,
+                                    pending=_Look(image_bgr, cam, width, road_state.scan, state.paint))
+        est, paint_state, lanes_seen = _look(image_bgr, cam, params, state.paint, maps, width, road_state.scan,
+                                             state.lanes_seen)
+        if lanes_seen > params.lanes_above:
             if est.found:
                 return replace(est, method=NAME, basis="paint", drivable_mask=mask), \
                     AutoState(road_state, paint_state, lanes_seen, maps=maps)
             return replace(est, method=NAME), AutoState(road_state, paint_state, lanes_seen, maps=maps)
-        # the carriageway is the lane; whether paint divides it is looked at after this frame's
-        # answer (AutoState.settle: the paint method costs about as much as the carriageway
-        # again), and once a road has long shown none, on one frame in settled_every
-        whole = carriageway_estimate(NAME, cam, left, right, width, road_state, mask, (h, w))
-        if state.lanes_seen is not None and state.lanes_seen < params.settled_below \
-                and state.since_check + 1 < params.settled_every:
-            return whole, AutoState(road_state, None, state.lanes_seen, state.since_check + 1, maps)
-        return whole, AutoState(road_state, state.paint, state.lanes_seen, maps=maps,
-                                pending=(image_bgr, cam, width, road_state.scan))
+        return whole(), AutoState(road_state, paint_state, lanes_seen, maps=maps)
     est, paint_state = _paint(image_bgr, cam, params, state.paint, maps)
     if est.found:
         return replace(est, method=NAME, basis="paint", drivable_mask=mask), \
@@ -163,6 +174,16 @@ def _paint(image_bgr: np.ndarray, cam: Camera, params: AutoParams, state: Slidin
         return sliding_window(image_bgr, cam, params.paint, state)
     from signlane.lanes.segnet import paint_lane
     return paint_lane(NAME, maps, cam, params.paint, state)
+
+
+def _look(image_bgr: np.ndarray, cam: Camera, params: AutoParams, paint: SlidingWindowState | None,
+          maps: seg_model.FrameMaps | None, width: float, scan, lanes_seen: float | None):
+    """A look for lane paint dividing a kerbed carriageway: (the paint method's estimate, its new
+    state, the running share of frames where it bounded a lane inside the carriageway)."""
+    est, paint_state = _paint(image_bgr, cam, params, paint, maps)
+    inside = est.found and est.confidence >= params.lane_confidence and width > 0 \
+        and est.lane_width_m < params.lane_share * width and _road_beside(est, scan, params)
+    return est, paint_state, _remember(lanes_seen, float(inside), params.lane_memory)
 
 
 def road_state(state) -> RoadEdgesState | None:
