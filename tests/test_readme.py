@@ -49,6 +49,7 @@ def shrink(cmd: str, models: Path) -> str:
     for part in parts:
         p = part
         if re.match(r"\s*signlane (demo|sim)\b", p):
+            p = re.sub(r"--max-seconds [\d.]+", "", p)  # the README's own length gives way to 4 s
             p = re.sub(r"(signlane (demo|sim)\b)", r"\1 --max-seconds 4 --size 320x240", p, count=1)
         if re.match(r"\s*signlane gen pilot\b", p):  # one seed per style, 8 s a drive: 3 split blocks each
             p = re.sub(r"--n \d+", "--n 1", re.sub(r"--seconds [\d.]+", "", p)) + " --seconds 8"
