@@ -189,7 +189,7 @@ def main() -> None:
     print(f"ms per 640x480 frame, 1 thread, median of {args.repeats} repeats over {args.frames} consecutive frames")
     print(table(["frames", "pipeline"] + STAGES + ["total", "x S1", "path", "path x S1", "after"], rows))
     print("after: the work the driver puts off until the frame's command is out (DriveStack.answered(): auto's "
-          "look for lane paint on a kerbed road), not in the frame's path")
+          "look for lane paint where one look cannot change the frame's lane), not in the frame's path")
 
 
 if __name__ == "__main__":

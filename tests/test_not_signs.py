@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from signlane.config import SignsConfig
+from signlane.signs.classifier import SignClassifier
 from signlane.signs.not_signs import NotSigns
 from signlane.signs.stage import SignStage
 from signlane.types import SignDetection
@@ -17,7 +18,10 @@ def _prop(x: int, color: str = "blue") -> SignDetection:
 
 
 class FakeClassifier:
-    """Red proposals are stop signs; blue ones are no sign, sure or not (`unsure`)."""
+    """Red proposals are stop signs; blue ones are no sign, sure or not (`unsure`). The stage
+    reaches it through the real classifier's label_detections."""
+
+    label_detections = SignClassifier.label_detections
 
     def __init__(self, unsure: bool = False):
         self.seen: list[int] = []  # the x of each crop classified
@@ -88,7 +92,8 @@ def test_a_new_stream_forgets(stage, monkeypatch):
 def test_colour_counts_and_the_recheck_must_be_a_frame_or_more():
     ns = NotSigns()
     ns.learn(_prop(200), "unknown", 0.99)
-    fresh, known = ns.split([_prop(200, "red")])
-    assert fresh and not known  # a red thing where a blue one was is not the blue one
+    assert ns.split([_prop(200, "red")]) == [_prop(200, "red")]  # a red thing where a blue one was is not the blue one
+    ns.learn(_prop(200), "unknown", 0.99)
+    assert ns.split([_prop(202)]) == []  # the blue one, 2 px on
     with pytest.raises(ValueError, match="recheck"):
         NotSigns(recheck=0)

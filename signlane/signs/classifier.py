@@ -69,10 +69,14 @@ class SignClassifier:
         return out
 
     def label_detections(self, image_bgr: np.ndarray, proposals: list[SignDetection],
-                         min_score: float = 0.5) -> list[SignDetection]:
-        """Proposals relabelled by the classifier; 'unknown' and low-score ones dropped."""
+                         min_score: float = 0.5, verdict=None) -> list[SignDetection]:
+        """Proposals relabelled by the classifier; 'unknown' and low-score ones dropped.
+        `verdict(proposal, label, score)`, when given, hears every proposal's verdict."""
         if not proposals:
             return []
         results = self.classify([crop(image_bgr, p.box) for p in proposals])
+        if verdict is not None:
+            for p, (label, score, _) in zip(proposals, results):
+                verdict(p, label, score)
         return [replace(p, label=label, score=score) for p, (label, score, _) in zip(proposals, results)
                 if label != "unknown" and score >= min_score]

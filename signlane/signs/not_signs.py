@@ -30,10 +30,10 @@ class NotSigns:
         self.recheck, self.sure = recheck, sure
         self._seen: list[_Seen] = []
 
-    def split(self, proposals: list[SignDetection]) -> tuple[list[SignDetection], list[SignDetection]]:
-        """(to classify, known to be no sign) of this frame's proposals; the remembered ones not
-        seen again are forgotten, the ones seen again grow a frame older."""
-        fresh, known, kept = [], [], []
+    def split(self, proposals: list[SignDetection]) -> list[SignDetection]:
+        """This frame's proposals to classify: all but those known to be no sign. The remembered
+        ones not seen again are forgotten, the ones seen again grow a frame older."""
+        fresh, kept = [], []
         for p in proposals:
             match = next((s for s in self._seen if s.color == p.color and s.age + 1 < self.recheck
                           and box_iou(s.box, p.box) >= SAME_IOU), None)
@@ -42,9 +42,8 @@ class NotSigns:
             else:
                 self._seen.remove(match)
                 kept.append(_Seen(p.box, p.color, match.age + 1))
-                known.append(p)
         self._seen = kept
-        return fresh, known
+        return fresh
 
     def learn(self, proposal: SignDetection, label: str, score: float) -> None:
         """The classifier's verdict on a proposal it has just looked at."""

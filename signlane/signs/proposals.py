@@ -302,10 +302,10 @@ def _search(win: planes.Window, s_min: int, roi: tuple[int, int, int, int], colo
 
 
 def _search_level(win: planes.Window, s_min: int, roi: tuple[int, int, int, int], color: str, ctx: _Ctx,
-                  out: list[_Blob], window: tuple[int, int, int, int] | None) -> list[tuple[tuple, int]]:
+                  out: list[_Blob], window: tuple[int, int, int, int] | None) -> tuple[int, list[tuple[tuple, int]]]:
     """One saturation level of _search inside roi: its blobs that look like signs go to `out`;
-    returns, for those that are not confident signs, their box (x0, y0, x1, y1) and the least
-    saturation of this level's pixels inside it."""
+    returns the number of contours found and, for the blobs that are not confident signs, their
+    box (x0, y0, x1, y1) and the least saturation of this level's pixels inside it."""
     p = ctx.params
     sat = win.crop(win.sat[color], roi)
     mask = planes.level_mask(sat, s_min, ctx.kernel)

@@ -7,11 +7,10 @@ confirmed ones.
 from __future__ import annotations
 
 import time
-from dataclasses import replace
 
 from signlane.config import SignsConfig
 from signlane.signs import proposals
-from signlane.signs.classifier import DEFAULT_MODEL, SignClassifier, crop
+from signlane.signs.classifier import DEFAULT_MODEL, SignClassifier
 from signlane.signs.confirm import SignConfirmer
 from signlane.signs.not_signs import NotSigns
 from signlane.types import SignDetection
@@ -36,25 +35,13 @@ class SignStage:
         found = proposals.propose(image_bgr, self.params, half)
         t1 = time.perf_counter()
         if self.classifier is not None:
-            found = self._classify(image_bgr, found)
+            # what the classifier was sure is no sign on the frames just before is not classified again
+            found = self.classifier.label_detections(image_bgr, self.not_signs.split(found), self.config.min_score,
+                                                     self.not_signs.learn)
         self.confirmed = self.confirmer.step(found)
         # what this frame's two parts cost (ms), for the driver's timing and the benchmarks
         self.last_ms = {"proposals": (t1 - t0) * 1e3, "classifier": (time.perf_counter() - t1) * 1e3}
         return tuple(found), self.confirmed
-
-    def _classify(self, image_bgr, found: list[SignDetection]) -> list[SignDetection]:
-        """Proposals relabelled by the classifier ('unknown' and low-score ones dropped), but for
-        those it was sure of as no sign on the frames just before (not classified again)."""
-        fresh, _ = self.not_signs.split(found)
-        if not fresh:
-            return []
-        results = self.classifier.classify([crop(image_bgr, p.box) for p in fresh])
-        out = []
-        for p, (label, score, _) in zip(fresh, results):
-            self.not_signs.learn(p, label, score)
-            if label != "unknown" and score >= self.config.min_score:
-                out.append(replace(p, label=label, score=score))
-        return out
 
     def reset(self) -> None:
         self.not_signs.reset()
