@@ -1,7 +1,7 @@
 """A recorded drive: consecutive frames along one track, in the lane dataset layout, plus video.
 
 Layout of `out/`: images/<id>.jpg, masks/<id>.png (class ids as in `gen lanes`: 0 background,
-1 lane marking), labels.jsonl (the lane contract plus "t", seconds since the first frame),
+1 lane marking, 255 kerbs), labels.jsonl (the lane contract plus "t", seconds since the first frame),
 drive.mp4 (H.264, `fps`, the JPEG frames in order), manifest.json (with "mask_encoding").
 """
 from __future__ import annotations

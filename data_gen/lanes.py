@@ -4,11 +4,13 @@ Layout of `out/`:
     images/<id>.jpg      uint8 BGR frame, JPEG quality 95
     masks/<id>.png       uint8 class ids, the frame's size: 0 background, 1 lane marking
     drivable/<id>.png    uint8 class ids: 0 off the road, 1 road surface (only with drivable=True)
+    (kerbs are 255, no label, in both masks)
     labels.jsonl         one JSON object per frame, in id order (see `frame_label`)
     manifest.json        written last: the folder is complete iff it exists; its
                          "mask_encoding" is signlane.label_masks.IDS ("ids-0-1-255ignore")
 
-The masks hold no 255 (ignore): the renderer labels every pixel it draws. The sky holds no paint
+The masks' only 255s (ignore) are kerbs (VIA style, see `write_frame`): the renderer labels
+every other pixel it draws. The sky holds no paint
 and is background (a model must learn not to find paint there); beyond the renderer's view range
 it draws neither paint nor road, in the image as in the masks.
 """
@@ -68,9 +70,14 @@ def write_frame(out: Path, sid: str, sample: Sample, drivable: bool, extra: dict
     truth = sample.truth
     h, w = sample.image.shape[:2]
     atomic_imwrite(out / "images" / f"{sid}.jpg", sample.image, [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
-    atomic_imwrite(out / "masks" / f"{sid}.png", label_masks.encode(truth.marking_mask > 0))
+    # a kerb is neither paint nor road surface, but it is a bright stripe along the road's edge
+    # that looks like an edge line; labelled 0 it taught the road model that white stripes on
+    # asphalt are off-road (it then missed a real highway's dashes and edge lines), so it
+    # carries no label in either mask
+    kerb = truth.kerb_mask > 0
+    atomic_imwrite(out / "masks" / f"{sid}.png", label_masks.encode(truth.marking_mask > 0, kerb))
     if drivable:
-        atomic_imwrite(out / "drivable" / f"{sid}.png", label_masks.encode(truth.drivable_mask > 0))
+        atomic_imwrite(out / "drivable" / f"{sid}.png", label_masks.encode(truth.drivable_mask > 0, kerb))
     label = frame_label(sid, truth, w, h, drivable)
     label.update(extra or {})
     atomic_write_json(partial_dir(out, "labels") / f"{sid}.json", label, pretty=False)

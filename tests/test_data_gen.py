@@ -248,7 +248,7 @@ def test_drive_frames_and_video(tmp_path: Path) -> None:
     cap.release()
     assert frames == 10 and manifest["counts"]["frames"] == 10
     assert manifest["mask_encoding"] == "ids-0-1-255ignore"
-    assert set(np.unique(cv2.imread(str(out / rows[0]["mask"]), cv2.IMREAD_UNCHANGED))) <= {0, 1}
+    assert set(np.unique(cv2.imread(str(out / rows[0]["mask"]), cv2.IMREAD_UNCHANGED))) <= {0, 1, 255}  # 255: kerbs
     import av
     with av.open(str(out / "drive.mp4")) as box:  # H.264, which browsers play (OpenCV reads it too)
         assert box.streams.video[0].codec_context.name == "h264" and manifest["config"]["video"] == "h264"
@@ -259,3 +259,24 @@ def test_contact_sheet_layout() -> None:
     imgs = [np.full((30, 40, 3), k * 20, np.uint8) for k in range(10)] + [np.zeros((10, 10), np.uint8)]
     sheet = contact_sheet(imgs, cols=4, tile=(80, 60), captions=[str(k) for k in range(11)], gap=0)
     assert sheet.shape == (3 * 60, 4 * 80, 3) and sheet.dtype == np.uint8
+
+
+def test_kerbs_carry_no_label_in_either_mask(tmp_path: Path) -> None:
+    """A VIA-style kerb is a white stripe beside the road: neither paint nor road surface, but
+    labelled 0 it teaches a road model that white stripes on asphalt are off-road, so both masks
+    leave its pixels unlabelled (255) and every other pixel keeps its class."""
+    from signlane.world.sampling import FrameSampler, SamplerConfig
+    from signlane_data.lanes import write_frame
+    sampler = FrameSampler(3, SamplerConfig(width=160, height=120, style="via", effects="clean"))
+    kerbs = 0
+    for i in range(6):
+        smp = sampler.sample(i)
+        write_frame(tmp_path, f"{i:02d}", smp, drivable=True)
+        kerb = smp.truth.kerb_mask > 0
+        kerbs += int(kerb.sum())
+        marking = cv2.imread(str(tmp_path / "masks" / f"{i:02d}.png"), 0)
+        road = cv2.imread(str(tmp_path / "drivable" / f"{i:02d}.png"), 0)
+        assert np.array_equal(marking == 255, kerb) and np.array_equal(road == 255, kerb)
+        assert np.array_equal(marking == 1, smp.truth.marking_mask > 0)
+        assert np.array_equal(road == 1, smp.truth.drivable_mask > 0)
+    assert kerbs > 500  # the frames do show kerbs

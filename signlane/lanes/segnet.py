@@ -10,7 +10,7 @@ binary guesses paint from brightness, the network has learned it from exact mask
 rain, glare, shadows and worn paint. The debug mask is the network's marking mask at the
 frame's size (what `infer --save-masks` writes).
 
-A road model (seg_model.ROAD_CLASSES) also gives P(road surface). Where the paint gives no lane
+A road model (seg_model.ROAD_CLASSES; the shipped model is one) also gives P(road surface). Where the paint gives no lane
 (VIA's kerbed carriageway has none; worn or hidden paint), the carriageway is found as
 `road-edges` finds it, from the model's road and paint instead of colour rules
 (`road_edges.carriageway` with the maps), and the lane is the carriageway, the car keeping its

@@ -13,11 +13,13 @@ from signlane.world.objects import DrawnObject
 from signlane.world.route import Pose, Route
 
 LOOKAHEAD_M = 60.0
-# the renderer's paint ids: 0 off-road, 1 asphalt, 2-5 paint (white, yellow, faded white/yellow)
+# the renderer's paint ids: 0 off-road, 1 asphalt, 2-5 paint (white, yellow, faded white/yellow), 6 kerb
 _MARKING_LUT = np.zeros(256, np.uint8)
 _MARKING_LUT[2:6] = 255
 _DRIVABLE_LUT = np.zeros(256, np.uint8)
 _DRIVABLE_LUT[1:6] = 255
+_KERB_LUT = np.zeros(256, np.uint8)
+_KERB_LUT[6] = 255
 POLYLINE_STEP_M = 0.5
 CURVATURE_WINDOW_M = (2.0, 15.0)
 
@@ -44,6 +46,7 @@ class GroundTruth:
     pose: Pose
     marking_mask: np.ndarray  # uint8 (H, W) 0/255: visible lane paint
     drivable_mask: np.ndarray  # uint8 (H, W) 0/255: road surface
+    kerb_mask: np.ndarray  # uint8 (H, W) 0/255: kerbs (VIA's white kerb stripes beside the road)
     left: np.ndarray  # (N, 2) float image pixels, near to far; ego-lane left boundary
     right: np.ndarray
     center: np.ndarray
@@ -79,10 +82,11 @@ def compute_truth(scene, pose: Pose, camera: Camera, paint_ids: np.ndarray, draw
                   route: Route | None, s_hint: float | None) -> GroundTruth:
     marking = cv2.LUT(paint_ids, _MARKING_LUT)
     drivable = cv2.LUT(paint_ids, _DRIVABLE_LUT)
+    kerb = cv2.LUT(paint_ids, _KERB_LUT)
     signs, others = _objects_truth(drawn, camera)
     empty = np.zeros((0, 2), np.float32)
     if route is None:
-        return GroundTruth(camera, pose, marking, drivable, empty, empty, empty, signs=signs, distractors=others)
+        return GroundTruth(camera, pose, marking, drivable, kerb, empty, empty, empty, signs=signs, distractors=others)
     s, lateral = route.project(pose.x, pose.y, s_hint)
     lw = route.track.style.lane_width
     heading = wrap_pi(route.pose_at(s).heading - pose.heading)
@@ -93,7 +97,7 @@ def compute_truth(scene, pose: Pose, camera: Camera, paint_ids: np.ndarray, draw
     lines = [_image_polyline(pose, camera, lane + k * (lw / 2) * right) for k in (-1, 1, 0)]
     win = route.ahead(s + CURVATURE_WINDOW_M[0], CURVATURE_WINDOW_M[1] - CURVATURE_WINDOW_M[0])
     curvature = float(np.mean(route.curvature[win])) if len(win) else 0.0
-    return GroundTruth(camera, pose, marking, drivable, *lines, offset=lateral / lw, heading=heading,
+    return GroundTruth(camera, pose, marking, drivable, kerb, *lines, offset=lateral / lw, heading=heading,
                        curvature=curvature, lane_width_m=lw, signs=signs, junction=_junction(route, s),
                        distractors=others)
 
