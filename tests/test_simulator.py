@@ -5,6 +5,7 @@ import json
 import threading
 import time
 
+import numpy as np
 import pytest
 from websockets.sync.server import serve
 
@@ -157,3 +158,26 @@ def test_fps_flag_refuses(text):
         fps_arg(text)
     with pytest.raises(ValueError, match="fps"):
         SimConfig(fps=float("nan") if text == "nan" else -1.0)
+
+
+def test_a_car_that_drives_off_a_dead_end_is_put_back_turned_round():
+    """A straight road that ends both ways, driven straight on: each time the car leaves an end
+    the referee counts one off-road event and puts it back at that end facing the other way (put
+    back facing the end it would leave again within a few frames, one event after another)."""
+    cells = [{"id_inmap": r * 5 + 2, "tile_id": 0, "rot": 0} for r in range(1, 11)]
+    track = Track.from_via({"map_name": "stub", "map_size": {"x": 5, "y": 12}, "car_pos": {"x": 2, "y": 2},
+                            "cell_datas": cells})
+    assert len(track.dead_ends) == 2
+    sim = Simulator(track, small(max_seconds=60.0))
+    events, headings, ts = 0, [], []
+    while sim.t < 40.0:
+        sim.advance((0.0, 0.6), dt=1 / 30)
+        if sim.score.offroad_events > events:
+            events = sim.score.offroad_events
+            headings.append(sim.vehicle.pose.heading)
+            ts.append(sim.t)
+            p = sim._ahead(sim.vehicle.params.wheelbase_m / 2)  # the car's origin, as refereed: back on its lane
+            assert abs(sim.course.cross_track(p.x, p.y)) < 0.05
+    assert events >= 3  # it drove off both ends, and again
+    assert all(abs(abs(b - a) - np.pi) < 0.1 for a, b in zip(headings, headings[1:]))  # turned round each time
+    assert min(np.diff(ts)) > 3.0  # a road's length apart, not a few frames

@@ -47,7 +47,9 @@ def _polyline_offset(pts: np.ndarray, p: np.ndarray) -> tuple[float, float]:
     d = np.hypot(*(p - q).T)
     i = int(np.argmin(d))
     cross = ab[i, 0] * (p[1] - a[i, 1]) - ab[i, 1] * (p[0] - a[i, 0])
-    return float(d[i]), float(-np.sign(cross) * d[i])  # CCW cross > 0 = left of travel
+    # CCW cross > 0 = left of travel; a point dead ahead of the path's end (cross 0) is still
+    # its distance away: no sign must not make it 0
+    return float(d[i]), float(d[i]) if cross < 0 else -float(d[i])
 
 
 class CourseTracker:
@@ -88,6 +90,8 @@ class CourseTracker:
 
     def nearest_lane_pose(self, x: float, y: float) -> tuple[float, float, float]:
         """The closest point on the current tile's ego-lane paths and the heading there."""
+        if self._past_the_end():
+            return self._turned_round()
         best = None
         for ex in self.track.exits(self.tile, self.entry):
             pts = self.lane_path(self.tile, self.entry, ex)
@@ -98,6 +102,23 @@ class CourseTracker:
             if best is None or d < best[0]:
                 best = (d, pts[i], math.atan2(*(pts[j] - pts[k])[::-1]))
         return float(best[1][0]), float(best[1][1]), best[2]
+
+    def _past_the_end(self) -> bool:
+        """Whether the car has driven out of the current tile by an end the road does not go on from."""
+        return (self._left_by is not None and self._left_by[0] == self.tile.index
+                and self.track.next_tile(self.tile, self._left_by[1]) is None)
+
+    def _turned_round(self) -> tuple[float, float, float]:
+        """A car that drove off a dead end is put back as a safety driver would: turned round at
+        the road's end, in the lane that leads back out (the tile is entered anew from that end).
+        Put back facing the end, it would drive off it again at once, and one wrong turn would
+        count as an off-road event every few frames for the rest of the run."""
+        end = self._left_by[1]
+        self.entry, self._left_by = end, None
+        ex = (self.track.viable_exits(self.tile, end) or self.track.exits(self.tile, end))[0]
+        pts = self.lane_path(self.tile, end, ex)
+        k = min(2, len(pts) - 1)
+        return float(pts[0][0]), float(pts[0][1]), math.atan2(*(pts[k] - pts[0])[::-1])
 
     # --- signs ------------------------------------------------------------------------------
     def _approach_signs(self) -> dict[tuple[int, str], str]:
