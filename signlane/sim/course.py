@@ -52,6 +52,13 @@ def _polyline_offset(pts: np.ndarray, p: np.ndarray) -> tuple[float, float]:
     return float(d[i]), float(d[i]) if cross < 0 else -float(d[i])
 
 
+def _pose_on(pts: np.ndarray, i: int) -> tuple[float, float, float]:
+    """(x, y, heading) at point i of a path, the heading along it there."""
+    j = min(i + 1, len(pts) - 1)
+    k = max(j - 1, 0)
+    return float(pts[i][0]), float(pts[i][1]), math.atan2(*(pts[j] - pts[k])[::-1])
+
+
 class CourseTracker:
     def __init__(self, track: Track, tile: Tile, entry: Port):
         self.track = track
@@ -88,37 +95,27 @@ class CourseTracker:
             best = min(best, (d, lat))
         return best[1]
 
-    def nearest_lane_pose(self, x: float, y: float) -> tuple[float, float, float]:
-        """The closest point on the current tile's ego-lane paths and the heading there."""
-        if self._past_the_end():
-            return self._turned_round()
+    def put_back_pose(self, x: float, y: float) -> tuple[float, float, float]:
+        """Where the referee puts a car that left the road at (x, y): the closest point on the
+        current tile's ego-lane paths, with the heading there. A car that drove off a dead end is
+        turned round at the road's end instead, in the lane that leads back out, as a safety
+        driver would (the tracker enters the tile anew from that end): put back facing the end it
+        would drive off again at once, and one wrong turn would count as an off-road event every
+        few frames for the rest of the run."""
+        left_by = self._left_by
+        if left_by is not None and left_by[0] == self.tile.index and self.track.next_tile(self.tile, left_by[1]) is None:
+            end = left_by[1]
+            self.entry, self._left_by = end, None
+            ex = (self.track.viable_exits(self.tile, end) or self.track.exits(self.tile, end))[0]
+            return _pose_on(self.lane_path(self.tile, end, ex), 0)
         best = None
         for ex in self.track.exits(self.tile, self.entry):
             pts = self.lane_path(self.tile, self.entry, ex)
             i = int(np.argmin(np.hypot(*(pts - (x, y)).T)))
-            j = min(i + 1, len(pts) - 1)
-            k = max(j - 1, 0)
             d = float(np.hypot(*(pts[i] - (x, y))))
             if best is None or d < best[0]:
-                best = (d, pts[i], math.atan2(*(pts[j] - pts[k])[::-1]))
-        return float(best[1][0]), float(best[1][1]), best[2]
-
-    def _past_the_end(self) -> bool:
-        """Whether the car has driven out of the current tile by an end the road does not go on from."""
-        return (self._left_by is not None and self._left_by[0] == self.tile.index
-                and self.track.next_tile(self.tile, self._left_by[1]) is None)
-
-    def _turned_round(self) -> tuple[float, float, float]:
-        """A car that drove off a dead end is put back as a safety driver would: turned round at
-        the road's end, in the lane that leads back out (the tile is entered anew from that end).
-        Put back facing the end, it would drive off it again at once, and one wrong turn would
-        count as an off-road event every few frames for the rest of the run."""
-        end = self._left_by[1]
-        self.entry, self._left_by = end, None
-        ex = (self.track.viable_exits(self.tile, end) or self.track.exits(self.tile, end))[0]
-        pts = self.lane_path(self.tile, end, ex)
-        k = min(2, len(pts) - 1)
-        return float(pts[0][0]), float(pts[0][1]), math.atan2(*(pts[k] - pts[0])[::-1])
+                best = (d, _pose_on(pts, i))
+        return best[1]
 
     # --- signs ------------------------------------------------------------------------------
     def _approach_signs(self) -> dict[tuple[int, str], str]:

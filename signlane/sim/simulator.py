@@ -150,9 +150,9 @@ class Simulator:
         return Pose(p.x + dist_m * float(np.cos(p.heading)), p.y + dist_m * float(np.sin(p.heading)), p.heading)
 
     def _intervene(self) -> None:
-        """Off the road: put the car back on the lane centre, as a safety driver would."""
+        """Off the road: put the car back on the lane centre (turned round at a dead end), as a safety driver would."""
         o = self._ahead(self.vehicle.params.wheelbase_m / 2)
-        x, y, heading = self.course.nearest_lane_pose(o.x, o.y)
+        x, y, heading = self.course.put_back_pose(o.x, o.y)
         half = self.vehicle.params.wheelbase_m / 2
         self.vehicle.pose = Pose(x - half * float(np.cos(heading)), y - half * float(np.sin(heading)), heading)
         self.vehicle.wheel_deg = 0.0
