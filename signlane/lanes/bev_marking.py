@@ -3,6 +3,7 @@ bright-stripe mask, histogram peaks, ego-pair choice and plausibility checks."""
 from __future__ import annotations
 
 from collections.abc import Callable
+from functools import lru_cache
 
 import cv2
 import numpy as np
@@ -11,11 +12,13 @@ from signlane.camera import BirdsEye, Camera
 from signlane.lanes.geometry import Boundary, curvature_of, fit_boundary
 
 
+@lru_cache(maxsize=32)
 def ego_birdseye(camera: Camera, x_half_m: float, depth_m: float, px_per_m: tuple[float, float] | None,
                  near_row: float = 1.0) -> BirdsEye:
     """Bird's-eye view of the road ahead from the camera model: ground x in +-x_half_m, y from the
     ground seen at `near_row` (fraction of the height, 1 = bottom row) to depth_m beyond it;
-    px_per_m None gives a bird's-eye of the camera's own size (as the S2 report did)."""
+    px_per_m None gives a bird's-eye of the camera's own size (as the S2 report did). One view
+    per camera and setting, made once: its homographies are then computed once, not every frame."""
     v = min(camera.height - 1.0, near_row * camera.height)
     y0 = float(camera.image_to_ground(np.array([[camera.width / 2.0, v]]))[0, 1])
     if not np.isfinite(y0) or y0 <= 0:
@@ -80,7 +83,8 @@ def histogram_peaks(hist: np.ndarray, smooth_px: float, rel: float = 0.15, top: 
     h = cv2.GaussianBlur(hist.astype(np.float32).reshape(1, -1), (k, 1), smooth_px).ravel()
     if h.max() <= 0:
         return []
-    idx = np.flatnonzero((h >= np.roll(h, 1)) & (h > np.roll(h, -1)) & (h >= rel * h.max()))
+    ring = np.concatenate([h[-1:], h, h[:1]])  # each column's neighbours, wrapping round (as np.roll)
+    idx = ((h >= ring[:-2]) & (h > ring[2:]) & (h >= rel * h.max())).nonzero()[0]
     return [int(i) for i in idx[np.argsort(-h[idx])][:top]]
 
 

@@ -25,10 +25,12 @@ The bird's-eye, stripe-mask, pairing and checking helpers live in `bev_marking` 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import cv2
 import numpy as np
 
+from signlane import order_stats
 from signlane.camera import BirdsEye, Camera
 from signlane.lanes import register
 from signlane.lanes.bev_marking import (ego_birdseye, histogram_peaks, parallel, parallel_fits, pick_ego_pair,
@@ -132,7 +134,7 @@ def _line(px: _Pixels, idx: np.ndarray, fill: float, p: SlidingWindowParams) -> 
     if len(pts) > 1500:  # plenty for a quadratic; keeps polyfit cheap
         pts = pts[:: len(pts) // 1500 + 1]
     if len(pts):
-        pts = pts[pts[:, 1] < np.percentile(pts[:, 1], 2) + p.fit_near_m]
+        pts = pts[pts[:, 1] < order_stats.quantile(pts[:, 1], 0.02) + p.fit_near_m]
     return _Line(idx, fill, pts, fit_boundary(pts))
 
 
@@ -240,17 +242,34 @@ def _shape(px: _Pixels, bev: BirdsEye, p: SlidingWindowParams) -> tuple[float, f
     that make the near pixels' histogram sharpest, and that histogram of x0 (columns)."""
     bw, bh = bev.size
     near = px.vs >= bh * (1.0 - p.hist_rows)
-    x, t = px.ground[near, 0], px.ground[near, 1] - bev.y_range_m[0]
-    bs = np.linspace(-p.shear_max, p.shear_max, 11) if p.shear_max > 0 else np.zeros(1)
-    ks = np.linspace(-p.bend_max, p.bend_max, 7) if p.bend_max > 0 else np.zeros(1)
+    us, vs = px.us[near], px.vs[near]
+    bb, kk = _shape_grid(p.shear_max, p.bend_max)
+    # x0 = x - b t - k t^2 / 2 in columns is the pixel's column less a shift that depends only on
+    # its row (t is the row's distance): the shifts for every (b, k) and row first (a small
+    # table), then one gather and subtraction over the (77, pixels) array
+    v0 = int(vs.min()) if len(vs) else 0
+    t = bev.bev_to_ground(np.column_stack([np.zeros(bh - v0), np.arange(v0, bh)]))[:, 1] - bev.y_range_m[0]
+    shift = (bb[:, None] * t[None, :] + (0.5 * kk)[:, None] * (t * t)[None, :]) * bev.px_per_m[0]
+    x0 = shift[:, vs - v0]
+    np.subtract(us[None, :], x0, out=x0)
+    cols = np.rint(x0, out=x0).astype(np.int64)
+    cols += bw * np.arange(len(bb))[:, None]  # each hypothesis its own bins
+    inside = (x0 >= 0) & (x0 < bw)
+    hist = np.bincount(cols[inside], minlength=len(bb) * bw).reshape(len(bb), bw)
+    j = int(np.argmax(np.einsum("ij,ij->i", hist, hist)))  # the sharpest: the largest sum of squares
+    return float(bb[j]), float(kk[j]), hist[j].astype(np.float64)
+
+
+@lru_cache(maxsize=8)
+def _shape_grid(shear_max: float, bend_max: float) -> tuple[np.ndarray, np.ndarray]:
+    """The (slope, bend) hypotheses _shape tries, flattened: 11 slopes x 7 bends (one value each
+    where the limit is 0)."""
+    bs = np.linspace(-shear_max, shear_max, 11) if shear_max > 0 else np.zeros(1)
+    ks = np.linspace(-bend_max, bend_max, 7) if bend_max > 0 else np.zeros(1)
     bb, kk = (a.ravel() for a in np.meshgrid(bs, ks))
-    x0 = x[None, :] - bb[:, None] * t[None, :] - 0.5 * kk[:, None] * (t * t)[None, :]
-    cols = np.round((x0 - bev.x_range_m[0]) * bev.px_per_m[0]).astype(np.int64)
-    inside = (cols >= 0) & (cols < bw)
-    flat = (cols + bw * np.arange(len(bb))[:, None])[inside]
-    hist = np.bincount(flat, minlength=len(bb) * bw).reshape(len(bb), bw).astype(np.float64)
-    j = int(np.argmax((hist * hist).sum(axis=1)))
-    return float(bb[j]), float(kk[j]), hist[j]
+    bb.setflags(write=False)
+    kk.setflags(write=False)
+    return bb, kk
 
 
 def _climb(px: _Pixels, valid: np.ndarray, bev: BirdsEye, p: SlidingWindowParams, predict) -> _Line | None:
@@ -261,26 +280,25 @@ def _climb(px: _Pixels, valid: np.ndarray, bev: BirdsEye, p: SlidingWindowParams
     win_h = max(1, bh // max(1, p.n_windows))
     minpix = max(1, round(p.min_fill * win_w * win_h))
     shift, kept, tried = 0.0, [], 0
-    for k in range(max(1, p.n_windows)):
-        v_hi, v_lo = bh - k * win_h, max(0, bh - (k + 1) * win_h)
+    n = max(1, p.n_windows)
+    v_his = bh - win_h * np.arange(n)
+    v_los = np.maximum(0, v_his - win_h)
+    # each window's rows are a slice of the pixels (rows ascending): all the bounds in one search
+    bounds = np.searchsorted(px.vs, np.concatenate([v_los, v_his])).tolist()
+    for k, (v_lo, v_hi) in enumerate(zip(v_los.tolist(), v_his.tolist())):
         v_mid = 0.5 * (v_lo + v_hi)
         u_c = predict(v_mid) + shift
-        lo, hi = np.searchsorted(px.vs, (v_lo, v_hi))  # the window's rows: a slice, not a scan of all
-        sel = lo + np.flatnonzero(np.abs(px.us[lo:hi] - u_c) < win_w / 2)
+        lo, hi = bounds[k], bounds[n + k]
         tried += int(0 <= u_c < bw and valid[min(bh - 1, int(v_mid)), int(u_c)] > 0)
+        if hi - lo < minpix:  # too few lit pixels in the window's rows to count
+            continue
+        sel = lo + (np.abs(px.us[lo:hi] - u_c) < win_w / 2).nonzero()[0]
         if len(sel) >= minpix:
             kept.append(sel)
-            shift = (_median(px.us[sel]) if p.median else float(np.mean(px.us[sel]))) - predict(v_mid)
+            shift = (order_stats.median(px.us[sel]) if p.median else float(np.mean(px.us[sel]))) - predict(v_mid)
     if not kept:
         return None
     return _line(px, np.concatenate(kept), min(1.0, len(kept) / max(tried, 1)), p)
-
-
-def _median(a: np.ndarray) -> float:
-    """np.median of a small array without its per-call overhead (it runs ~30 times a frame)."""
-    a = np.sort(a)
-    n = len(a)
-    return float(a[n // 2]) if n % 2 else 0.5 * (float(a[n // 2 - 1]) + float(a[n // 2]))
 
 
 def _window_search(px: _Pixels, valid: np.ndarray, bev: BirdsEye, p: SlidingWindowParams, lane_width_m: float):

@@ -31,6 +31,7 @@ from functools import lru_cache
 import cv2
 import numpy as np
 
+from signlane.order_stats import median, sorted_median, sorted_quantile
 from signlane.signs import planes
 from signlane.signs import roi as sign_roi
 from signlane.types import SignDetection
@@ -211,7 +212,7 @@ def _cut_circle_score(hull: np.ndarray, w: int, h: int, frame_wh: tuple[int, int
     r = float(np.sqrt(max(c + cx * cx + cy * cy, 0.0)))
     if r < 2:
         return 0.0
-    resid = _median(np.sort(np.abs(np.hypot(pts[:, 0] - cx, pts[:, 1] - cy) - r))) / r
+    resid = median(np.abs(np.hypot(pts[:, 0] - cx, pts[:, 1] - cy) - r)) / r
     size = _unit(1.0 - abs(2 * r / max(w, h) - 1.0) / 0.6) if 2 * r > max(w, h) else 1.0
     return 0.7 * _unit(1.0 - resid / 0.12) * size
 
@@ -420,26 +421,11 @@ def _ring_interior(contours, members: list[int], box: tuple[int, int, int, int],
     px = win.crop(win.hsv, (x, y, x + w, y + h))[m > 0]
     if len(px) < 8:
         return False
-    # numpy's percentile and median (linear between order statistics) from one sort each: the
-    # library calls cost 50-100 us apiece in wrappers, and cluttered red frames test 100+ holes
-    if _median(np.sort(px[:, 1])) > 60:
+    # numpy's percentile and median from one sort each (order_stats): cluttered red frames test 100+ holes
+    if sorted_median(np.sort(px[:, 1])) > 60:
         return False
     v = np.sort(px[:, 2])
-    return _quantile(v, 0.05) <= 0.8 * _median(v)
-
-
-def _median(ordered: np.ndarray) -> float:
-    """np.median of already sorted values (the mean of the middle two when their count is even)."""
-    n = len(ordered)
-    return float(ordered[n // 2]) if n % 2 else (float(ordered[n // 2 - 1]) + float(ordered[n // 2])) / 2.0
-
-
-def _quantile(ordered: np.ndarray, q: float) -> float:
-    """np.percentile(values, 100 q) of already sorted values (its default, linear method)."""
-    pos = q * (len(ordered) - 1)
-    lo = int(pos)
-    hi = min(lo + 1, len(ordered) - 1)
-    return float(ordered[lo]) + (float(ordered[hi]) - float(ordered[lo])) * (pos - lo)
+    return sorted_quantile(v, 0.05) <= 0.8 * sorted_median(v)
 
 
 def box_iou(a: tuple[int, int, int, int], b: tuple[int, int, int, int]) -> float:
