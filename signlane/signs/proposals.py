@@ -47,6 +47,8 @@ RING_GROW = 0.09  # a ring's width / its outer diameter, typical: the interior g
 SEARCH_LEVELS = 64  # a guard on the work of one colour's search of one window (_search): at most
 SEARCH_CONTOURS = 20000  # this many levels, or until this many contours have been found
 RING_HOLES = 128  # a red blob with more holes than this is textured or noisy ground, not a wall around a ring sign
+TEXTURE_HOLES = 32  # a red blob with more holes than this is textured (a wall around a ring sign has a few) ...
+TEXTURE_JUMP = 0.75  # ... and is searched again above this share of its pixels' saturations
 
 
 @dataclass(frozen=True)
@@ -339,9 +341,24 @@ def _search_level(win: planes.Window, s_min: int, roi: tuple[int, int, int, int]
             out += _rings_in_holes(contours, hier[0], i, ctx, win)
         if score < p.confident:
             lx, ly = x - roi[0], y - roi[1]
-            least = cv2.minMaxLoc(sat[ly:ly + h, lx:lx + w], mask[ly:ly + h, lx:lx + w])[0]
+            box_sat, box_mask = sat[ly:ly + h, lx:lx + w], mask[ly:ly + h, lx:lx + w]
+            if rings and holes[i] > TEXTURE_HOLES:
+                # textured ground of the colour (brown soil, VIA's brown ground): one step up splits
+                # it into hundreds of pieces, each searched again, level after level (10-40 ms a
+                # frame). A sign in it is more saturated than nearly all of it, so the next level
+                # is the first above most of its pixels
+                least = _saturation_quantile(box_sat, box_mask, TEXTURE_JUMP)
+            else:
+                least = cv2.minMaxLoc(box_sat, box_mask)[0]
             deeper.append(((x, y, x + w, y + h), int(least)))
     return len(contours), deeper
+
+
+def _saturation_quantile(sat: np.ndarray, mask: np.ndarray, q: float) -> int:
+    """The saturation below which a share q of the masked pixels lie (uint8 planes, one histogram)."""
+    hist = cv2.calcHist([sat], [0], mask, [256], [0, 256]).ravel()
+    cum = np.cumsum(hist)
+    return int(np.searchsorted(cum, q * cum[-1]))
 
 
 def _cut(x: int, y: int, w: int, h: int, window: tuple[int, int, int, int] | None, ctx: _Ctx) -> bool:
