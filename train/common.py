@@ -24,6 +24,19 @@ if logging.getLogger().hasHandlers():
         logging.getLogger("lightning").removeHandler(_h)
 
 
+def channels_last(net: torch.nn.Module) -> torch.nn.Module:
+    """The net with channels-last weights; feed it `as_channels_last` batches. Its convolutions
+    then train faster on the CPU (a fwd/bwd step on 2 threads: the lane net 0.49 -> 0.33 s a
+    batch of 32, PilotNet 0.17 -> 0.13 s and our small pilot 0.030 -> 0.026 s a batch of 64,
+    the sign net 10-25 %). A training detail only: the same numbers in another memory order, and
+    the exported graph does not see it."""
+    return net.to(memory_format=torch.channels_last)
+
+
+def as_channels_last(x: torch.Tensor) -> torch.Tensor:
+    return x.contiguous(memory_format=torch.channels_last)
+
+
 def one_cycle(module: L.LightningModule, opt: torch.optim.Optimizer, max_lr: float, pct_start: float) -> dict:
     """configure_optimizers' answer for a one-cycle rate: warm up over pct_start of the run's steps,
     then anneal to near zero, stepped per batch. The rate ends low, so the last epochs settle

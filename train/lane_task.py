@@ -17,7 +17,7 @@ import torch.nn.functional as F
 from torchmetrics.classification import BinaryF1Score, BinaryJaccardIndex
 
 from signlane.label_masks import IGNORE
-from signlane_train.common import one_cycle
+from signlane_train.common import as_channels_last, channels_last, one_cycle
 from signlane_train.lane_net import LaneSegNet
 
 
@@ -45,7 +45,7 @@ class LaneTask(L.LightningModule):
                  drivable_weight: float = 0.5):
         super().__init__()
         self.save_hyperparameters()
-        self.net = LaneSegNet(4 if drivable else 2, width)
+        self.net = channels_last(LaneSegNet(4 if drivable else 2, width))
         self.val_road_iou = BinaryJaccardIndex(ignore_index=IGNORE)
         self.register_buffer("ce_weight", torch.tensor([1.0, pos_weight]), persistent=False)
         self.val_iou, self.val_f1 = BinaryJaccardIndex(ignore_index=IGNORE), BinaryF1Score(ignore_index=IGNORE)
@@ -54,7 +54,7 @@ class LaneTask(L.LightningModule):
         self.sample_batch: tuple[torch.Tensor, torch.Tensor] | None = None
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        return self.net(x)
+        return self.net(as_channels_last(x))
 
     def _loss(self, logits: torch.Tensor, y: torch.Tensor, road: torch.Tensor | None = None) -> torch.Tensor:
         mark = logits[:, :2]

@@ -9,7 +9,7 @@ import lightning as L
 import torch
 import torch.nn.functional as F
 
-from signlane_train.common import one_cycle
+from signlane_train.common import as_channels_last, channels_last, one_cycle
 from signlane_train.pilot_net import PilotNet, SmallPilot
 
 ARCHS = ("pilotnet", "small")
@@ -35,12 +35,12 @@ class PilotTask(L.LightningModule):
             raise ValueError(f"schedule {schedule!r}: one of {', '.join(SCHEDULES)}")
         self.save_hyperparameters()
         w, h = input_size
-        self.net = PilotNet(h, w) if arch == "pilotnet" else SmallPilot(h, w, width)
+        self.net = channels_last(PilotNet(h, w) if arch == "pilotnet" else SmallPilot(h, w, width))
         self.samples_dir: Path | None = None
         self._val: list[tuple[torch.Tensor, torch.Tensor]] = []
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        return self.net(x)
+        return self.net(as_channels_last(x))
 
     def _loss(self, out, steering, desire, speed) -> tuple[torch.Tensor, torch.Tensor]:
         pred = pick_steering(out, desire)

@@ -7,7 +7,7 @@ from torch import nn
 from torchmetrics.classification import MulticlassAccuracy, MulticlassConfusionMatrix, MulticlassF1Score, MulticlassRecall
 
 from signlane.world.art import SIGN_CLASSES
-from signlane_train.common import one_cycle
+from signlane_train.common import as_channels_last, channels_last, one_cycle
 from signlane_train.sign_net import SignNet
 
 
@@ -17,9 +17,7 @@ class SignTask(L.LightningModule):
         super().__init__()
         self.save_hyperparameters()
         n = len(SIGN_CLASSES)
-        # channels-last convolutions train this small net about 10-25 % faster on the CPU; the
-        # layout is a training detail only (the exported graph does not see it)
-        self.net = SignNet(n, size, width).to(memory_format=torch.channels_last)
+        self.net = channels_last(SignNet(n, size, width))
         w = torch.tensor(class_weights, dtype=torch.float32) if class_weights else None
         self.loss = nn.CrossEntropyLoss(weight=w, label_smoothing=0.05)
         self.val_acc = MulticlassAccuracy(n, average="micro")
@@ -33,7 +31,7 @@ class SignTask(L.LightningModule):
 
     def training_step(self, batch, _):
         x, y = batch
-        x = x.contiguous(memory_format=torch.channels_last)
+        x = as_channels_last(x)
         logits = self(x)
         loss = self.loss(logits, y)
         self.train_acc(logits, y)
@@ -43,7 +41,7 @@ class SignTask(L.LightningModule):
 
     def validation_step(self, batch, _):
         x, y = batch
-        x = x.contiguous(memory_format=torch.channels_last)
+        x = as_channels_last(x)
         logits = self(x)
         self.log("val/loss", self.loss(logits, y), prog_bar=True)
         for m in (self.val_acc, self.val_f1, self.val_recall, self.val_confusion):
