@@ -62,9 +62,11 @@ class LaneScores:
 
 
 def eval_lanes(method: str, n: int = 500, seed: int = 1000, hard: bool = False, variant: str = "robust",
-               width: int = 320, height: int = 240, progress: bool = True, overrides: dict | None = None) -> dict:
+               width: int = 320, height: int = 240, progress: bool = True, overrides: dict | None = None,
+               errors: dict[int, float] | None = None) -> dict:
     """Score one lane method on a seeded test set; frames are independent (state reset each).
-    `overrides` set method parameters (e.g. {"model": "lanes.onnx"} for segnet)."""
+    `overrides` set method parameters (e.g. {"model": "lanes.onnx"} for segnet); `errors`, when
+    given, receives each found frame's offset error by frame index (for `add_common_errors`)."""
     sampler = FrameSampler(seed, test_set_config(hard, width, height))
     scores = LaneScores(method if variant == "robust" else f"{method}:{variant}")
     it = range(n)
@@ -74,11 +76,25 @@ def eval_lanes(method: str, n: int = 500, seed: int = 1000, hard: bool = False, 
         t0 = time.perf_counter()
         est = m(smp.image)
         scores.add(est, smp.truth, (time.perf_counter() - t0) * 1e3)
+        if errors is not None and est.found:
+            errors[i] = abs(est.offset - smp.truth.offset)
     return scores.summary()
+
+
+def add_common_errors(rows: list[dict], errors: list[dict[int, float]]) -> None:
+    """Give each row (eval_lanes' summaries, with each one's per-frame `errors`) the median
+    offset error over the frames that every row's method found, and their count. A method that
+    finds more frames finds harder ones: its median over all it found is not comparable with one
+    that gives up on them; over the shared frames it is."""
+    common = set.intersection(*(set(e) for e in errors)) if errors else set()
+    for row, err in zip(rows, errors):
+        row["offset_err_median_common"] = float(np.median([err[i] for i in common])) if common else float("nan")
+        row["common_frames"] = len(common)
 
 
 COLUMNS = [("method", "method", "{}"), ("found_pct", "found %", "{:.1f}"),
            ("offset_err_median", "off med", "{:.3f}"), ("offset_err_p95", "off p95", "{:.3f}"),
+           ("offset_err_median_common", "off med shared", "{:.3f}"),
            ("heading_err_median_deg", "head med deg", "{:.2f}"), ("curvature_sign_pct", "curv sign %", "{:.1f}"),
            ("ms_per_frame", "ms/frame", "{:.2f}")]
 

@@ -75,7 +75,9 @@ def add_eval(sub) -> None:
     common.add_argument("--plot", type=Path, help="also write a PNG plot")
     lanes = kinds.add_parser("lanes", parents=[common], help="lane found %%, offset/heading errors, curvature sign",
                              description="Lane found %, median and 95th percentile lateral-offset error (fraction "
-                                         "of lane width), heading error, curvature sign agreement, ms/frame.")
+                                         "of lane width), the median error over the frames every listed method "
+                                         "found (a method that finds more frames finds harder ones), heading "
+                                         "error, curvature sign agreement, ms/frame.")
     lanes.add_argument("--method", action="append", help="lane method (repeatable; default: all available)")
     lanes.add_argument("--size", type=size_arg, default=(320, 240), help="frame size WxH (default 320x240)")
     lanes.add_argument("--lanes-model", type=Path, help="segnet's ONNX model (default: the shipped one)")
@@ -149,17 +151,22 @@ def _run_eval(args) -> int:
     variants = ["robust", "published"] if args.variant == "both" else [args.variant]
     if args.kind == "lanes":
         from signlane import lanes
-        from signlane.evaluate import eval_lanes, format_table, plot_lanes, write_csv
+        from signlane.evaluate import add_common_errors, eval_lanes, format_table, plot_lanes, write_csv
         from signlane.onnx_model import ModelError
         methods = args.method or lanes.available()
         model = {"model": str(args.lanes_model)} if args.lanes_model else {}
+        runs = [(m, v) for m in methods for v in variants
+                if not (m == "segnet" and v == "published")]  # a learned method has no published baseline
+        errors = [{} for _ in runs]
         try:
             rows = [eval_lanes(m, args.n, args.seed, args.hard, v, *args.size,
-                               overrides=model if m == "segnet" else None) for m in methods for v in variants
-                    if not (m == "segnet" and v == "published")]  # a learned method has no published baseline
+                               overrides=model if m == "segnet" else None, errors=e) for (m, v), e in zip(runs, errors)]
         except (ValueError, ModelError) as e:
             raise UserError(str(e)) from None
+        add_common_errors(rows, errors)
         print(format_table(rows))
+        print(f"off med shared: the median offset error over the {rows[0]['common_frames'] if rows else 0} frames "
+              "that every method above found")
         if args.csv:
             write_csv(args.csv, rows)
         if args.plot:
