@@ -33,19 +33,19 @@ class LaneScores:
     method: str
     n: int = 0
     found: int = 0
-    offset_err: list[float] = field(default_factory=list)
+    offset_err: dict[int, float] = field(default_factory=dict)  # by frame index, found frames only
     heading_err_deg: list[float] = field(default_factory=list)
     curve_total: int = 0
     curve_agree: int = 0
     ms: list[float] = field(default_factory=list)
 
-    def add(self, est, truth, ms: float) -> None:
+    def add(self, est, truth, ms: float, index: int | None = None) -> None:
         self.n += 1
         self.ms.append(ms)
         if not est.found:
             return
         self.found += 1
-        self.offset_err.append(abs(est.offset - truth.offset))
+        self.offset_err[self.n - 1 if index is None else index] = abs(est.offset - truth.offset)
         self.heading_err_deg.append(abs(math.degrees(est.heading - truth.heading)))
         if abs(truth.curvature) > CURVED_K:
             self.curve_total += 1
@@ -55,7 +55,8 @@ class LaneScores:
         def pct(a, q):
             return float(np.percentile(a, q)) if a else float("nan")
         return {"method": self.method, "n": self.n, "found_pct": 100.0 * self.found / max(self.n, 1),
-                "offset_err_median": pct(self.offset_err, 50), "offset_err_p95": pct(self.offset_err, 95),
+                "offset_err_median": pct(list(self.offset_err.values()), 50),
+                "offset_err_p95": pct(list(self.offset_err.values()), 95),
                 "heading_err_median_deg": pct(self.heading_err_deg, 50),
                 "curvature_sign_pct": 100.0 * self.curve_agree / max(self.curve_total, 1),
                 "ms_per_frame": float(np.median(self.ms)) if self.ms else float("nan")}
@@ -75,9 +76,9 @@ def eval_lanes(method: str, n: int = 500, seed: int = 1000, hard: bool = False, 
         m = lanes.get(method, camera=smp.truth.nominal_camera, variant=variant, **(overrides or {}))
         t0 = time.perf_counter()
         est = m(smp.image)
-        scores.add(est, smp.truth, (time.perf_counter() - t0) * 1e3)
-        if errors is not None and est.found:
-            errors[i] = abs(est.offset - smp.truth.offset)
+        scores.add(est, smp.truth, (time.perf_counter() - t0) * 1e3, i)
+    if errors is not None:
+        errors.update(scores.offset_err)
     return scores.summary()
 
 

@@ -439,7 +439,7 @@ def _ring_interior(contours, members: list[int], box: tuple[int, int, int, int],
     if len(px) < 8:
         return False
     # numpy's percentile and median from one sort each (order_stats): cluttered red frames test 100+ holes
-    if sorted_median(np.sort(px[:, 1])) > 60:
+    if median(px[:, 1]) > 60:
         return False
     v = np.sort(px[:, 2])
     return sorted_quantile(v, 0.05) <= 0.8 * sorted_median(v)
