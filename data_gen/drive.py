@@ -7,7 +7,7 @@ drive.mp4 (H.264, `fps`, the JPEG frames in order), manifest.json (with "mask_en
 from __future__ import annotations
 
 import logging
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
@@ -70,7 +70,7 @@ def generate_drive(out: str | Path, n: int, seed: int, width: int = 640, height:
     out = Path(out)
     sampler = SamplerConfig(width=width, height=height, effects=effects, style=style)
     config = {"n": int(n), "seed": int(seed), "fps": float(fps), "speed_mps": float(speed_mps),
-              "sampler": asdict(sampler), "jpeg_quality": JPEG_QUALITY,
+              "sampler": sampler.recorded(), "jpeg_quality": JPEG_QUALITY,
               "steering": {"k_offset": K_OFFSET, "k_heading": K_HEADING, "k_curv": K_CURV}, "video": "h264",
               label_masks.MANIFEST_KEY: label_masks.IDS}
     manifest = prepare_output(out, "drive", config, resume)

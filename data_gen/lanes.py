@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import json
 import logging
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
@@ -127,19 +127,21 @@ class LaneJob:
 
 def lanes_config(n: int, seed: int, sampler: SamplerConfig, drivable: bool) -> dict:
     """The resolved options that determine the dataset's bytes (saved in the manifest)."""
-    return {"n": int(n), "seed": int(seed), "sampler": asdict(sampler), "drivable": drivable,
+    return {"n": int(n), "seed": int(seed), "sampler": sampler.recorded(), "drivable": drivable,
             "jpeg_quality": JPEG_QUALITY, label_masks.MANIFEST_KEY: label_masks.IDS,
             "steering": {"k_offset": K_OFFSET, "k_heading": K_HEADING, "k_curv": K_CURV}}
 
 
 def generate_lanes(out: str | Path, n: int, seed: int, width: int = 320, height: int = 240, workers: int = 1,
                    resume: bool = False, preview: bool = False, effects: str = "mixed", randomise: bool = True,
-                   drivable: bool = False, preset: str = "default", style: str = "painted") -> dict:
+                   drivable: bool = False, preset: str = "default", style: str = "painted",
+                   junctions: float = 0.0) -> dict:
     """Write a lane dataset of `n` frames to `out` (layout in the module docstring); return its
     manifest. Frame i depends only on (seed, i), so `workers` never changes the bytes written.
     preset 'heavy' replaces `effects` with the sampler's HEAVY randomisation (night, rain, strong
     wear and shadows, wider camera spread, 16:9 frames among the 4:3 ones); 'world' adds cameras
-    of any height, pitch and field of view (sampling.WORLD).
+    of any height, pitch and field of view (sampling.WORLD). `junctions`: the share of frames
+    placed just before a junction of the route (SamplerConfig.junctions).
     Raises DatasetError if `out` is not empty and is not this dataset or, without `resume`,
     holds an unfinished run."""
     if n < 1:
@@ -147,7 +149,11 @@ def generate_lanes(out: str | Path, n: int, seed: int, width: int = 320, height:
     out = Path(out)
     if preset not in PRESETS:
         raise ValueError(f"preset must be one of {', '.join(PRESETS)}, not {preset!r}")
+    if not 0.0 <= junctions <= 1.0:
+        raise ValueError(f"junctions is a share of the frames, 0..1, not {junctions}")
     extra = dict(PRESETS[preset]) if preset != "default" else {"effects": effects}
+    if junctions:  # only when asked: the manifests of sets made without it keep their config
+        extra["junctions"] = float(junctions)
     sampler = SamplerConfig(width=width, height=height, randomise=randomise, style=style, **extra)
     config = lanes_config(n, seed, sampler, drivable)
     manifest = prepare_output(out, "lanes", config, resume)

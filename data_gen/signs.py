@@ -14,7 +14,7 @@ from __future__ import annotations
 import json
 import logging
 from collections import Counter
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
@@ -128,7 +128,7 @@ def signs_config(n: int, seed: int, crop: int, unknown_fraction: float, frames: 
                  sampler: SamplerConfig) -> dict:
     """The resolved options that determine the dataset's bytes (saved in the manifest)."""
     return {"n": int(n), "seed": int(seed), "crop": int(crop), "unknown_fraction": float(unknown_fraction),
-            "frames": int(frames), "sampler": asdict(sampler), "classes": list(SIGN_CLASSES),
+            "frames": int(frames), "sampler": sampler.recorded(), "classes": list(SIGN_CLASSES),
             "targets": class_targets(n, unknown_fraction), "scene_unknown_share": SCENE_UNKNOWN_SHARE,
             "unknown_sprite_share": UNKNOWN_SPRITE_SHARE,
             "unknown_kind_weights": sc.UNKNOWN_KIND_WEIGHTS, "stop_words": sc.STOP_WORDS,

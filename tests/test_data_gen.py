@@ -280,3 +280,15 @@ def test_kerbs_carry_no_label_in_either_mask(tmp_path: Path) -> None:
         assert np.array_equal(marking == 1, smp.truth.marking_mask > 0)
         assert np.array_equal(road == 1, smp.truth.drivable_mask > 0)
     assert kerbs > 500  # the frames do show kerbs
+
+
+def test_junction_share_is_recorded_only_when_used_and_checked(lanes_ref: Path, tmp_path: Path) -> None:
+    """A set made without `junctions` keeps the manifest it always had (so sets made before the
+    option still match their config); a set made with it records it; a share outside 0..1 is refused."""
+    assert "junctions" not in json.loads((lanes_ref / "manifest.json").read_text())["config"]["sampler"]
+    m = generate_lanes(tmp_path / "j", 4, seed=7, junctions=0.5, **LANE_KW)
+    assert m["config"]["sampler"]["junctions"] == 0.5
+    with pytest.raises(ValueError, match="share of the frames"):
+        generate_lanes(tmp_path / "bad", 4, seed=7, junctions=1.5, **LANE_KW)
+    with pytest.raises(DatasetError, match="different options"):
+        generate_lanes(lanes_ref, N_LANES, seed=7, junctions=0.5, **LANE_KW)

@@ -382,6 +382,13 @@ def test_sim_with_driver_and_a_bad_model_is_one_line(capsys):
     assert one_error_line(capsys.readouterr().err, "sim").endswith("/nonexistent.onnx: model file not found")
 
 
+def test_gen_lanes_with_a_junction_share_over_one_is_one_line(tmp_path, capsys):
+    code = main(["gen", "lanes", "--n", "4", "--out", str(tmp_path / "set"), "--junctions", "2"])
+    assert code == 2
+    assert one_error_line(capsys.readouterr().err, "gen").endswith("junctions is a share of the frames, 0..1, not 2.0")
+    assert not (tmp_path / "set").exists()
+
+
 @pytest.fixture(scope="module")
 def crops(tmp_path_factory):
     from signlane_data.signs import generate_signs

@@ -440,3 +440,18 @@ def test_a_camera_low_over_the_road_sees_road_to_the_bottom_of_the_frame(style):
     near = smp.image[-20:, 100:220].reshape(-1, 3).mean(0)
     mid = smp.image[150:170, 140:180].reshape(-1, 3).mean(0)  # road a little further on
     assert np.abs(near - mid).max() < 25, (near, mid)  # and look like it
+
+
+def test_junction_focused_frames_have_a_junction_just_ahead():
+    """`junctions` places that share of the frames 1-30 m before a junction of the route (the
+    truth's junction distance); frames placed anywhere have one that near far less often."""
+    def near_share(share: float) -> float:
+        sampler = FrameSampler(3, SamplerConfig(style="mixed", effects="clean", junctions=share))
+        near = 0
+        for i in range(0, 200, 5):  # 8 tracks, 5 frames each
+            j = sampler.sample(i).truth.junction
+            near += j is not None and j.distance <= 30.5
+        return near / 40
+
+    assert near_share(1.0) == 1.0
+    assert near_share(0.0) < 0.5

@@ -44,6 +44,10 @@ def add_gen(sub) -> None:
                             "50-120 degrees field of view: for road models that meet unmeasured cameras)")
     lanes.add_argument("--drivable", action="store_true",
                        help="also write drivable/<id>.png (class ids: 1 road surface, 0 not)")
+    lanes.add_argument("--junctions", type=float, default=0.0, metavar="SHARE",
+                       help="share of the frames (0..1) placed 1-30 m before a junction of the route, so that "
+                            "side roads are in view (road models see too few of them in frames placed anywhere; "
+                            "default 0)")
     lanes.add_argument("--no-randomise", dest="randomise", action="store_false",
                        help="default road style, looks and camera instead of randomised ones")
     signs = kinds.add_parser("signs", parents=[common], help="labelled sign crops (ImageFolder)",
@@ -96,7 +100,7 @@ def _run_gen(args) -> int:
     from signlane_data.common import DatasetError
     try:
         return _gen(args)
-    except DatasetError as e:
+    except (DatasetError, ValueError) as e:  # the generators' checks of their options: one line
         raise UserError(str(e)) from None
 
 
@@ -106,7 +110,7 @@ def _gen(args) -> int:
         m = generate_lanes(args.out, args.n, args.seed, width=args.size[0], height=args.size[1],
                            workers=args.workers, resume=args.resume, preview=args.preview,
                            effects=args.effects, randomise=args.randomise, drivable=args.drivable,
-                           preset=args.preset, style=args.style or "painted")
+                           preset=args.preset, style=args.style or "painted", junctions=args.junctions)
     elif args.kind == "signs":
         from signlane_data.signs import generate_signs
         m = generate_signs(args.out, args.n, args.seed, crop=args.crop, workers=args.workers,

@@ -7,7 +7,7 @@ track and scene are built once per group.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
@@ -74,6 +74,15 @@ class SamplerConfig:
     wide_prob: float = 0.0  # chance a frame is 16:9 (same width, fewer rows) instead of width x height
     style: str = "painted"  # painted (lanes and lines) | via (VIA's kerbed road) | mixed (half each, per track)
     world_cameras: float = 0.0  # share of frames whose camera is any car's (world_camera) rather than near the style's
+    junctions: float = 0.0  # share of frames placed JUNCTION_AHEAD_M before a junction of the route (side roads in view)
+
+    def recorded(self) -> dict:
+        """The options as a dataset's manifest records them: options added since the first sets
+        were made appear only when used, so that those sets' manifests still match their config."""
+        out = asdict(self)
+        if not out["junctions"]:
+            del out["junctions"]
+        return out
 
 
 # training sets that must generalise past the renderer: wild effects, strong wear and shadows,
@@ -84,6 +93,9 @@ HEAVY = dict(effects="wild", looks_strength=2.5, camera_spread=1.5, wide_prob=0.
 # little to a model that sees every frame resized to its input; its aspect and its camera do
 WORLD = dict(HEAVY, world_cameras=0.5)
 PRESETS = {"default": {}, "heavy": HEAVY, "world": WORLD}
+# a junction-focused frame sees the junction's first cell this far ahead: from where a side road
+# is a sliver by the horizon to where it opens beside the car
+JUNCTION_AHEAD_M = (1.0, 30.0)
 
 
 class FrameSampler:
@@ -110,6 +122,7 @@ class FrameSampler:
                             looks_strength=cfg.looks_strength)
         self._renderer = Renderer(scene, sign_strength=0.7 if cfg.randomise else 0.0)
         self._sign_s = signs_along(self._route, scene.objects) if cfg.focus == "signs" else np.zeros(0)
+        self._junction_s = junctions_along(self._route)
         self._group = group
 
     def effects_for(self, rng: np.random.Generator) -> Effects:
@@ -133,6 +146,9 @@ class FrameSampler:
         s = float(rng.uniform(0, route.length - 80.0))
         if len(self._sign_s):
             s = float(np.clip(self._sign_s[int(rng.integers(len(self._sign_s)))] - rng.uniform(4, 45), 0, None))
+        elif cfg.junctions and len(self._junction_s) and rng.random() < cfg.junctions:  # drawn only when enabled
+            s = float(np.clip(self._junction_s[int(rng.integers(len(self._junction_s)))]
+                              - rng.uniform(*JUNCTION_AHEAD_M), 0, route.length - 80.0))
         lateral = float(np.clip(rng.normal(0, cfg.lateral_m), -1.2, 1.2))
         heading = float(np.radians(np.clip(rng.normal(0, cfg.heading_deg), -12, 12)))
         return self._renderer.render_on_route(route, s, camera, lateral, heading, self.effects_for(rng), rng)
@@ -153,6 +169,13 @@ def track_style(kind: str, rng: np.random.Generator, randomise: bool) -> RoadSty
         return random_style(rng, "via") if randomise else RoadStyle.via()
     style = random_style(rng) if randomise else RoadStyle()
     return replace(style, cell_m=float(rng.uniform(10, 16)) if randomise else 12.0)
+
+
+def junctions_along(route: Route) -> np.ndarray:
+    """Arc lengths along the route where it enters a junction tile (a T or a crossing), short of
+    the route's last 80 m (frames are drawn before them)."""
+    s = np.array([leg.s0 for leg in route.legs if leg.turn != "road"], float)
+    return s[s < route.length - 80.0]
 
 
 def signs_along(route: Route, objects) -> np.ndarray:
