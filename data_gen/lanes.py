@@ -152,9 +152,8 @@ def generate_lanes(out: str | Path, n: int, seed: int, width: int = 320, height:
     if not 0.0 <= junctions <= 1.0:
         raise ValueError(f"junctions is a share of the frames, 0..1, not {junctions}")
     extra = dict(PRESETS[preset]) if preset != "default" else {"effects": effects}
-    if junctions:  # only when asked: the manifests of sets made without it keep their config
-        extra["junctions"] = float(junctions)
-    sampler = SamplerConfig(width=width, height=height, randomise=randomise, style=style, **extra)
+    sampler = SamplerConfig(width=width, height=height, randomise=randomise, style=style,
+                            junctions=float(junctions), **extra)
     config = lanes_config(n, seed, sampler, drivable)
     manifest = prepare_output(out, "lanes", config, resume)
     if manifest is None:

@@ -122,7 +122,7 @@ class FrameSampler:
                             looks_strength=cfg.looks_strength)
         self._renderer = Renderer(scene, sign_strength=0.7 if cfg.randomise else 0.0)
         self._sign_s = signs_along(self._route, scene.objects) if cfg.focus == "signs" else np.zeros(0)
-        self._junction_s = junctions_along(self._route)
+        self._junction_s = junctions_along(self._route) if cfg.junctions else np.zeros(0)
         self._group = group
 
     def effects_for(self, rng: np.random.Generator) -> Effects:
@@ -146,7 +146,7 @@ class FrameSampler:
         s = float(rng.uniform(0, route.length - 80.0))
         if len(self._sign_s):
             s = float(np.clip(self._sign_s[int(rng.integers(len(self._sign_s)))] - rng.uniform(4, 45), 0, None))
-        elif cfg.junctions and len(self._junction_s) and rng.random() < cfg.junctions:  # drawn only when enabled
+        elif len(self._junction_s) and rng.random() < cfg.junctions:  # drawn only when enabled
             s = float(np.clip(self._junction_s[int(rng.integers(len(self._junction_s)))]
                               - rng.uniform(*JUNCTION_AHEAD_M), 0, route.length - 80.0))
         lateral = float(np.clip(rng.normal(0, cfg.lateral_m), -1.2, 1.2))
