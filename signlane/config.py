@@ -78,6 +78,11 @@ class PilotConfig:
     model: str = ""  # pilot ONNX file; "" = no pilot (the lane follower steers); "shipped" = signlane/models/pilot.onnx
     junctions: str = "planner"  # who steers through a planned junction: planner (its path) | pilot (told the exit)
     threads: int = 1  # onnxruntime threads of the pilot
+    # m/s the car keeps while the planner has lost the lane and the pilot steers (0: coast to a
+    # stand, as with the lane follower). The pilot needs no lane estimate to steer, and a car
+    # standing still with its view askew never finds the lane again (VIA seed 0: a pilot stood
+    # 40 s on the road, the road in view, steering toward it)
+    lost_speed: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -302,6 +307,7 @@ RANGES: dict[str, Range] = {
     "drive.sign_max_lateral_m": Range(0.5, 100.0, "m"),
     "drive.lanes_width": Range(32, 8192, "px", off=0),
     "pilot.threads": Range(1, 64, "threads"),
+    "pilot.lost_speed": Range(0.0, 100.0, "m/s"),
 }
 CHOICES: dict[str, tuple[str, ...]] = {
     "camera.estimate": ("auto", "off"),
@@ -313,6 +319,7 @@ ORDERED: list[tuple[str, str]] = [  # (a, b): a <= b
     ("signs.confirm_n", "signs.confirm_m"),
     ("drive.cruise_speed", "drive.max_speed"),
     ("drive.approach_speed", "drive.max_speed"),
+    ("pilot.lost_speed", "drive.max_speed"),
 ]
 
 

@@ -359,6 +359,24 @@ def test_at_a_planned_junction_the_planner_steers_by_default_or_the_pilot_told_t
     assert steer.steer(img, "cruise", 0.4, turning) == 0.05
 
 
+def test_with_a_pilot_a_lost_lane_slows_the_car_to_a_crawl_not_a_stand():
+    from signlane.config import Config
+    from signlane.pilot import PilotSteering
+    cfg = Config.load(None, [])
+    assert cfg.pilot.lost_speed == 1.0
+    steer = PilotSteering(object(), lost_speed=cfg.pilot.lost_speed)
+    max_speed = cfg.drive.max_speed
+    # the planner coasts (throttle 0) where it lost the lane: the car keeps 1 m/s for the pilot
+    assert steer.throttle("lost", 0.0, max_speed) == pytest.approx(1.0 / max_speed)
+    # anything else is the planner's own: a stop stays a stop, a faster cruise stays
+    assert steer.throttle("stopped", 0.0, max_speed) == 0.0
+    assert steer.throttle("stopping", 0.05, max_speed) == 0.05
+    assert steer.throttle("cruise", 0.37, max_speed) == 0.37
+    assert PilotSteering(object(), lost_speed=0.0).throttle("lost", 0.0, max_speed) == 0.0  # as the lane follower
+    with pytest.raises(ValueError, match="pilot.lost_speed"):
+        Config.load(None, ["pilot.lost_speed=20", "drive.max_speed=13.41"])
+
+
 def test_eval_pilot_scores_models_side_by_side_and_draws(pilot, tmp_path, capsys):
     root, rec, _, onnx_path, _ = pilot
     assert main(["eval", "pilot", str(rec), "--model", str(onnx_path), "--model", str(onnx_path),

@@ -16,7 +16,8 @@ interpreter. Synchronous signs make lockstep runs deterministic.
 
 With a pilot (`--set pilot.model=FILE`, signlane/pilot.py) the pilot's steering replaces the
 lane follower's; lanes, junctions and signs still run, because the behaviour layer plans speed,
-stops and exits from them, and the chosen exit is the pilot's desire.
+stops and exits from them, and the chosen exit is the pilot's desire. Where the planner has lost
+the lane the pilot still steers, and the car keeps `pilot.lost_speed` instead of coasting to a stand.
 """
 from __future__ import annotations
 
@@ -63,7 +64,8 @@ class DriveStack:
         self.signs = self.perception.signs
         from signlane.pilot import PilotSteering, from_config
         model = from_config(self.config.pilot)
-        self.pilot = PilotSteering(model, self.config.pilot.junctions) if model is not None else None
+        self.pilot = PilotSteering(model, self.config.pilot.junctions, self.config.pilot.lost_speed) \
+            if model is not None else None
         self.planner_command: Command | None = None  # the last frame's command before the pilot steered
         self.seq = 0
 
@@ -102,6 +104,7 @@ class DriveStack:
         self.planner_command = Command(steering, throttle, state)
         if self.pilot is not None:
             steering = self.pilot.steer(small, state, steering, lane)
+            throttle = self.pilot.throttle(state, throttle, self.config.drive.max_speed)
             timing["pilot"] = (time.perf_counter() - t4) * 1e3
         lane = ps.in_frame_pixels(lane, w)  # report the lane in the frame's own pixels
         frame = Frame(image, t, self.seq)

@@ -160,6 +160,7 @@ def run_session(track: Track, sim_config: SimConfig, out: Path | None, config: C
                         from dataclasses import asdict
                         from signlane.sim.teacher import TakeoverParams
                         student = {"model": config.pilot.model, "junctions": config.pilot.junctions,
+                                   "lost_speed": config.pilot.lost_speed,
                                    "takeover": asdict(takeover.p if takeover is not None else TakeoverParams())}
                     meta = drive_meta(track, sim_config, noise, record_every, student)
                     rep = _inprocess(sim, driver, progress, record, config, meta, noise, record_every, takeover)
