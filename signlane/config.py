@@ -80,8 +80,8 @@ class PilotConfig:
     threads: int = 1  # onnxruntime threads of the pilot
     # m/s the car keeps while the planner has lost the lane and the pilot steers (0: coast to a
     # stand, as with the lane follower). The pilot needs no lane estimate to steer, and a car
-    # standing still with its view askew never finds the lane again (VIA seed 0: a pilot stood
-    # 40 s on the road, the road in view, steering toward it)
+    # standing still with its view askew never finds the lane again (VIA seed 0: a pilot stood on
+    # the road for the rest of a 600-s run, the road in view, steering toward it)
     lost_speed: float = 1.0
 
 
