@@ -6,7 +6,7 @@ States (the `Command.state` string):
 - `stopping` / `stopped`: a stop sign: roll to a full stop before it, hold (2 s by default), go.
 - `junction-left|right|straight`: markings vanish in a junction, so the car follows a planned
   path (straight on, or an arc to the chosen exit) in the odometry frame until it is through.
-- `lost`: no lane and nothing planned: coast straight.
+- `lost`: no lane and nothing planned: coast straight (to a stand, or on at `lost_speed`).
 
 Exit choice at a junction: `left`/`right`/`straight` signs take that exit when it exists;
 `no_left`/`no_right` never take that exit; with no instruction, straight if possible, else right.
@@ -34,6 +34,7 @@ class BehaviourParams:
     max_speed: float = 10.0  # m/s at throttle 1 (the simulator's)
     cruise_speed: float = 5.0
     approach_speed: float = 3.0
+    lost_speed: float = 0.0  # m/s kept with the lane lost (0: coast to a stand); a pilot steering needs no lane
     junction_speed: float = 2.8
     lateral_accel: float = 2.0  # m/s^2 allowed in curves
     curve_preview_m: float = 12.0  # how far along the traced lane a bend slows the car
@@ -219,7 +220,7 @@ class Behaviour:
         if stop is not None:
             return stop
         if not lane.found:
-            return 0.0, "lost"
+            return p.lost_speed, "lost"
         v = p.cruise_speed
         # the bend ahead: the lane's curvature, and the sharpest circle to its traced centre line
         k = max(abs(lane.curvature), path_curvature(lane.path_m, p.curve_preview_m))

@@ -117,8 +117,8 @@ class PilotSteering:
     the steering sent. The planner's speed and state stay; at a planned junction the pilot is
     told the exit (its desire), or the planner's path steers there (junctions = "planner")."""
 
-    def __init__(self, model: PilotModel, junctions: str = "planner", lost_speed: float = 0.0):
-        self.model, self.junctions, self.lost_speed = model, junctions, lost_speed
+    def __init__(self, model: PilotModel, junctions: str = "planner"):
+        self.model, self.junctions = model, junctions
         self.last: PilotOutput | None = None
         self.settling = False  # out of a planner-steered junction, not yet lined up with the exit lane
 
@@ -141,13 +141,6 @@ class PilotSteering:
                 return planner_steering
         self.last = self.model.step(frame_bgr, desire_of(state))
         return self.last.steering
-
-    def throttle(self, state: str, planner_throttle: float, max_speed: float) -> float:
-        """The throttle sent: the planner's, except that where it has lost the lane (and so
-        coasts to a stand) the car keeps lost_speed m/s while the pilot steers on."""
-        if state == "lost" and self.lost_speed > 0:
-            return max(planner_throttle, min(self.lost_speed / max_speed, 1.0))
-        return planner_throttle
 
     def reset(self) -> None:
         self.last, self.settling = None, False

@@ -359,20 +359,23 @@ def test_at_a_planned_junction_the_planner_steers_by_default_or_the_pilot_told_t
     assert steer.steer(img, "cruise", 0.4, turning) == 0.05
 
 
-def test_with_a_pilot_a_lost_lane_slows_the_car_to_a_crawl_not_a_stand():
+def test_with_a_pilot_a_lost_lane_slows_the_car_to_a_crawl_not_a_stand(pilot):
+    from signlane.behaviour import Behaviour, BehaviourParams
     from signlane.config import Config
-    from signlane.pilot import PilotSteering
-    cfg = Config.load(None, [])
-    assert cfg.pilot.lost_speed == 1.0
-    steer = PilotSteering(object(), lost_speed=cfg.pilot.lost_speed)
-    max_speed = cfg.drive.max_speed
-    # the planner coasts (throttle 0) where it lost the lane: the car keeps 1 m/s for the pilot
-    assert steer.throttle("lost", 0.0, max_speed) == pytest.approx(1.0 / max_speed)
-    # anything else is the planner's own: a stop stays a stop, a faster cruise stays
-    assert steer.throttle("stopped", 0.0, max_speed) == 0.0
-    assert steer.throttle("stopping", 0.05, max_speed) == 0.05
-    assert steer.throttle("cruise", 0.37, max_speed) == 0.37
-    assert PilotSteering(object(), lost_speed=0.0).throttle("lost", 0.0, max_speed) == 0.0  # as the lane follower
+    from signlane.drive.stack import DriveStack
+    from signlane.odometry import OdoPose
+    from signlane.types import LaneEstimate
+    onnx_path = pilot[3]
+    # the planner's speed with no lane: a stand by default, lost_speed where it is given
+    lost = LaneEstimate("auto", False)
+    for lost_speed in (0.0, 1.0):
+        b = Behaviour(BehaviourParams(max_speed=13.41, lost_speed=lost_speed))
+        _, throttle, state = b.step(0.0, OdoPose(0.0, 0.0), 0.0, 0.5, lost, None)
+        assert state == "lost" and throttle == pytest.approx(lost_speed / 13.41)
+    # the drive stack gives it only to a planner whose car a pilot steers
+    with_pilot = DriveStack(Config.load(None, [f"pilot.model={onnx_path}", "signs.enabled=false"]))
+    alone = DriveStack(Config.load(None, ["signs.enabled=false"]))
+    assert with_pilot.behaviour.p.lost_speed == 1.0 and alone.behaviour.p.lost_speed == 0.0
     with pytest.raises(ValueError, match="pilot.lost_speed"):
         Config.load(None, ["pilot.lost_speed=20", "drive.max_speed=13.41"])
 

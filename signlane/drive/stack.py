@@ -56,16 +56,18 @@ class DriveStack:
         dc = self.config.drive
         self.sync_signs = sync_signs
         self.perception = PerceptionStack(self.config, dc.lanes_width, sync_signs)
+        from signlane.pilot import PilotSteering, from_config
+        model = from_config(self.config.pilot)
+        self.pilot = PilotSteering(model, self.config.pilot.junctions) if model is not None else None
         self.behaviour = Behaviour(BehaviourParams(
             max_speed=dc.max_speed, cruise_speed=dc.cruise_speed, approach_speed=dc.approach_speed,
             stop_hold_s=dc.stop_hold_s, coast_decel=dc.coast_decel, wheelbase_m=dc.wheelbase_m,
-            camera_forward_m=self.config.camera.forward_m))
+            camera_forward_m=self.config.camera.forward_m,
+            # the pilot steers without a lane estimate: with one, a lost lane slows the car to a
+            # crawl instead of a stand it would never leave
+            lost_speed=self.config.pilot.lost_speed if self.pilot is not None else 0.0))
         self.odometry = Odometry(dc.wheelbase_m)
         self.signs = self.perception.signs
-        from signlane.pilot import PilotSteering, from_config
-        model = from_config(self.config.pilot)
-        self.pilot = PilotSteering(model, self.config.pilot.junctions, self.config.pilot.lost_speed) \
-            if model is not None else None
         self.planner_command: Command | None = None  # the last frame's command before the pilot steered
         self.seq = 0
 
@@ -104,7 +106,6 @@ class DriveStack:
         self.planner_command = Command(steering, throttle, state)
         if self.pilot is not None:
             steering = self.pilot.steer(small, state, steering, lane)
-            throttle = self.pilot.throttle(state, throttle, self.config.drive.max_speed)
             timing["pilot"] = (time.perf_counter() - t4) * 1e3
         lane = ps.in_frame_pixels(lane, w)  # report the lane in the frame's own pixels
         frame = Frame(image, t, self.seq)
