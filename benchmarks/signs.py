@@ -27,10 +27,11 @@ from signlane.world.sampling import FrameSampler, SamplerConfig
 from signlane.tables import pairs, table
 
 CARD = DEFAULT_MODEL.with_suffix(".json")
-STEPS = {"generate": "data", "train": "training", "export": "export"}  # step -> card section with its command
+# step -> card section with its command (a card without a quantization section skips that step)
+STEPS = {"generate": "data", "train": "training", "export": "export", "quantize": "quantization"}
 # the card's output paths, moved into the temp folder (the recipe never writes the shipped files;
-# its model is runs/signs/signs.onnx, shipped by a separate `signlane ship` step)
-MOVED = ("data/signs", "runs/signs")
+# its model is the file its `signlane ship` step names)
+MOVED = ("data/signs", "runs/signs_int8", "runs/signs")
 
 
 def median_ms(fn, repeats: int) -> float:
@@ -67,10 +68,12 @@ def recipe(card: dict) -> tuple[dict[str, float], dict]:
     with tempfile.TemporaryDirectory() as d:
         times = {}
         for step, section in STEPS.items():
+            if section not in card:
+                continue
             t0 = time.perf_counter()
             subprocess.run(relocate(card[section]["command"], Path(d)), check=True, capture_output=True)
             times[step] = time.perf_counter() - t0
-        return times, eval_signs(test_set(card), moved("runs/signs", Path(d)) / "signs.onnx")
+        return times, eval_signs(test_set(card), Path(relocate(card["ship"]["command"], Path(d))[4]))
 
 
 def test_set(card: dict) -> Path:

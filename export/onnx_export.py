@@ -3,6 +3,7 @@ int8 quantization. Export fails loudly: a file that does not check or match torc
 from __future__ import annotations
 
 import json
+import logging
 import os
 import tempfile
 import warnings
@@ -125,9 +126,12 @@ def check_parity(model: torch.nn.Module, onnx_path: str | Path, input_shape: tup
     return worst
 
 
-def quantize_int8(src: str | Path, dst: str | Path, calibration: list[np.ndarray]) -> None:
-    """Static int8 (QDQ) quantization calibrated on the given input batches; metadata kept."""
+def quantize_int8(src: str | Path, dst: str | Path, calibration: list[np.ndarray],
+                  extra_metadata: dict[str, str] | None = None) -> None:
+    """Static int8 (QDQ) quantization calibrated on the given input batches; metadata kept (plus
+    `extra_metadata`, full keys)."""
     from onnxruntime.quantization import CalibrationDataReader, QuantFormat, QuantType, quantize_static
+    from onnxruntime.quantization.shape_inference import quant_pre_process
 
     class Reader(CalibrationDataReader):
         def __init__(self):
@@ -140,15 +144,21 @@ def quantize_int8(src: str | Path, dst: str | Path, calibration: list[np.ndarray
     dst = Path(dst)
     fd, tmp = tempfile.mkstemp(suffix=".onnx", dir=dst.parent)
     os.close(fd)
+    pre = tmp[:-len(".onnx")] + "_pre.onnx"
     try:
-        quantize_static(str(src), tmp, Reader(), quant_format=QuantFormat.QDQ, activation_type=QuantType.QUInt8,
+        # onnxruntime's own preparation (shapes inferred, graph optimised) before the ranges are
+        # taken: what its quantizer asks for, and it warns without it
+        logging.getLogger("onnxruntime.quantization.shape_inference").setLevel(logging.WARNING)  # its progress notes
+        quant_pre_process(str(src), pre)
+        quantize_static(pre, tmp, Reader(), quant_format=QuantFormat.QDQ, activation_type=QuantType.QUInt8,
                         weight_type=QuantType.QInt8, per_channel=True)
         proto = onnx.load(tmp)
-        set_metadata(proto, {p.key: p.value for p in onnx.load(str(src)).metadata_props})
+        set_metadata(proto, {**{p.key: p.value for p in onnx.load(str(src)).metadata_props}, **(extra_metadata or {})})
         onnx.checker.check_model(proto)
         onnx.save(proto, tmp)
         os.chmod(tmp, 0o644)
         os.replace(tmp, dst)
     finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+        for leftover in (tmp, pre):
+            if os.path.exists(leftover):
+                os.unlink(leftover)

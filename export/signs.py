@@ -1,4 +1,5 @@
-"""`signlane export signs CKPT --out model.onnx [--int8]`: the classifier as ONNX with its contract."""
+"""`signlane export signs CKPT --out model.onnx [--int8]`: the classifier as ONNX with its contract;
+`signlane quantize signs MODEL.onnx --data DIR --out int8.onnx`: an exported one as int8."""
 from __future__ import annotations
 
 from dataclasses import replace
@@ -38,12 +39,50 @@ def export_signs(ckpt: str | Path, out: str | Path, int8: bool = False, metrics:
     if int8:
         if val is None:
             raise ValueError(f"--int8: no val crops to calibrate on in {', '.join(roots)}")
-        q = out.with_name(out.stem + "_int8.onnx")
-        calib = [preprocess_crops(val[0][i:i + 64], spec) for i in range(0, min(len(val[0]), 1024), 64)]
-        quantize_int8(out, q, calib)
-        report["int8"] = {"path": str(q), "bytes": q.stat().st_size, "val_accuracy": _accuracy(q, *val)}
+        report["int8"] = _int8(out, out.with_name(out.stem + "_int8.onnx"), val, spec, roots)
         report["int8"]["accuracy_drop"] = report["val_accuracy"] - report["int8"]["val_accuracy"]
     return report
+
+
+def quantize_signs(model: str | Path, data: list[str | Path], out: str | Path) -> dict:
+    """An exported fp32 sign classifier as int8 (QDQ, per-channel weights), calibrated on the val
+    crops of `data` (a `signlane gen signs` set: its training data, or one made the same way).
+    The int8 file runs the classifier's convolutions about three times faster on one thread;
+    the report gives both files' accuracy on those crops and how often their labels agree, so a
+    quantization that costs accuracy is seen before it is shipped."""
+    model, out = Path(model), Path(out)
+    spec = SignClassifier(model).model.input  # the contract first: one line for a file that is no classifier
+    if _is_quantized(model):
+        raise ValueError(f"{model}: already quantized (it holds QuantizeLinear nodes); quantize the fp32 export")
+    roots = [str(d) for d in data]
+    val = _val_crops(roots, spec)
+    if val is None:
+        raise ValueError(f"{', '.join(roots)}: no val crops to calibrate on")
+    report = {"model": str(model), "val_crops": len(val[1]), "val_accuracy": _accuracy(model, *val)}
+    report["int8"] = _int8(model, out, val, spec, roots)
+    report["int8"]["accuracy_drop"] = report["val_accuracy"] - report["int8"]["val_accuracy"]
+    return report
+
+
+CALIBRATION_CROPS = 1024  # val crops the int8 ranges are calibrated on (all of them below that)
+
+
+def _int8(src: Path, dst: Path, val: tuple[list[np.ndarray], np.ndarray], spec, roots: list[str]) -> dict:
+    """Quantize src to dst on val's first crops; dst's accuracy and label agreement with src on all of val."""
+    crops, labels = val
+    n = min(len(crops), CALIBRATION_CROPS)
+    calib = [preprocess_crops(crops[i:min(i + 64, n)], spec) for i in range(0, n, 64)]
+    note = f"int8 (QDQ, per-channel weights), calibrated on {n} val crops of {', '.join(roots)}; from {src.name}"
+    quantize_int8(src, dst, calib, {"signlane.quantized": note})
+    fp32 = SignClassifier(src, threads=2, batch=256).probabilities(crops).argmax(axis=1)
+    int8 = SignClassifier(dst, threads=2, batch=256).probabilities(crops).argmax(axis=1)
+    return {"path": str(dst), "bytes": dst.stat().st_size, "calibration_crops": n,
+            "val_accuracy": float((int8 == labels).mean()), "agreement": float((int8 == fp32).mean())}
+
+
+def _is_quantized(path: Path) -> bool:
+    import onnx
+    return any(n.op_type in ("QuantizeLinear", "QLinearConv") for n in onnx.load(str(path)).graph.node)
 
 
 def _val_crops(roots: list[str], spec) -> tuple[list[np.ndarray], np.ndarray] | None:

@@ -11,7 +11,7 @@ import sys
 from signlane import __version__
 from signlane.commands.common import UserError
 from signlane.commands.drive import add_drive, add_export_drive
-from signlane.commands.models import add_autolabel, add_classify, add_export, add_ship, add_train
+from signlane.commands.models import add_autolabel, add_classify, add_export, add_quantize, add_ship, add_train
 from signlane.commands.perception import add_eval, add_infer
 from signlane.commands.run import add_run
 from signlane.commands.settings import add_config
@@ -33,8 +33,8 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True, metavar="<command>")
     words = [a for a in (sys.argv[1:] if argv is None else argv) if not a.startswith("-")]
     lightning_flags = bool(words) and words[0] == "train"
-    for add in (add_infer, add_eval, add_gen, lambda s: add_train(s, lightning_flags), add_export, add_ship,
-                add_classify, add_autolabel, add_demo, add_map, add_drive, add_export_drive, add_sim, add_run,
+    for add in (add_infer, add_eval, add_gen, lambda s: add_train(s, lightning_flags), add_export, add_quantize,
+                add_ship, add_classify, add_autolabel, add_demo, add_map, add_drive, add_export_drive, add_sim, add_run,
                 add_config):
         add(sub)
     return p

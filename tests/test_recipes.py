@@ -35,12 +35,13 @@ def shrunk(command: str, kind: str) -> list[str]:
 
 
 def run_recipe(kind: str, where: Path, monkeypatch) -> dict:
-    """The card's gen, train and export commands, shrunk, run in `where` (as a user in a fresh
-    clone runs them from its root); returns the card."""
+    """The card's gen, train and export commands (and its quantization, where it has one), shrunk,
+    run in `where` (as a user in a fresh clone runs them from its root); returns the card."""
     card = json.loads((MODELS_DIR / f"{kind}.json").read_text())
     monkeypatch.chdir(where)
-    for section in ("data", "training", "export"):
-        assert main(shrunk(card[section]["command"], kind)) == 0, card[section]["command"]
+    for section in ("data", "training", "export", "quantization"):
+        if section in card:
+            assert main(shrunk(card[section]["command"], kind)) == 0, card[section]["command"]
     return card
 
 
@@ -59,6 +60,8 @@ def test_the_sign_recipe_writes_runs_and_data_only(sign_recipe):
     assert shipped_models() == before
     assert "signlane/models" not in json.dumps(card)
     assert (where / "runs/signs/signs.onnx").is_file() and (where / "data/signs/manifest.json").is_file()
+    shipped = shlex.split(card["ship"]["command"])[2]  # what the card's ship step ships: the recipe made it
+    assert (where / shipped).is_file()
     assert sorted(p.name for p in where.iterdir()) == ["data", "runs"]
 
 

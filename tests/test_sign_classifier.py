@@ -90,6 +90,37 @@ def test_export_matches_torch_and_carries_its_contract(trained):
     assert "accuracy_drop" in exported["int8"] and (root / "signs_int8.onnx").exists()
 
 
+def test_quantize_makes_an_int8_classifier_that_keeps_the_labels(trained, tmp_path, capsys):
+    from signlane.cli import main
+    from signlane.ship import MODELS_DIR
+    root, _, onnx_path, _ = trained
+    out = tmp_path / "q" / "signs.onnx"
+    capsys.readouterr()
+    assert main(["quantize", "signs", str(onnx_path), "--data", str(root / "data"), "--out", str(out)]) == 0
+    report = json.loads(capsys.readouterr().out)
+    graph = onnx.load(str(out))
+    assert any(n.op_type == "QuantizeLinear" for n in graph.graph.node)  # int8 inside, the fp32 contract outside
+    meta = {p.key: p.value for p in graph.metadata_props}
+    assert meta["signlane.task"] == TASK and "int8" in meta["signlane.quantized"]
+    assert report["int8"]["calibration_crops"] == report["val_crops"] > 0
+    # the labels the fp32 file gives, on crops it was not calibrated with as on those it was
+    crops = [cv2.imread(str(p)) for p in sorted((root / "data").rglob("*.png"))]
+    fp32, int8 = SignClassifier(onnx_path).probabilities(crops), SignClassifier(out).probabilities(crops)
+    assert (fp32.argmax(1) == int8.argmax(1)).mean() >= 0.95 and np.abs(fp32 - int8).max() < 0.2
+    assert report["int8"]["agreement"] >= 0.95 and abs(report["int8"]["accuracy_drop"]) <= 0.05
+    # an int8 file again, the shipped models' folder, a crop set without a val split: one line each
+    for argv, words in ((["quantize", "signs", str(out), "--data", str(root / "data"), "--out", str(tmp_path / "qq.onnx")],
+                         "already quantized"),
+                        (["quantize", "signs", str(onnx_path), "--data", str(root / "data"), "--out",
+                          str(MODELS_DIR / "signs.onnx")], "signlane ship"),
+                        (["quantize", "signs", str(onnx_path), "--data", str(tmp_path / "none"), "--out",
+                          str(tmp_path / "qq.onnx")], "none")):
+        assert main(argv) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and words in err[0], err
+    assert not (tmp_path / "qq.onnx").exists()
+
+
 def test_missing_corrupt_and_foreign_models_give_clear_errors(tmp_path, trained):
     _, _, onnx_path, _ = trained
     with pytest.raises(ModelError, match="not found"):
