@@ -8,7 +8,8 @@ output (N, classes). The classes name what each output column is:
   (conditional imitation: the planner picks the branch), and `speed`: the teacher's target
   speed in m/s, predicted beside it.
 The one pre-processing for training, export parity, evaluation and the runtime is
-`preprocess_frames`; `desire_of` maps the behaviour's state to a desire, in one place.
+`preprocess_frames`; `desire_of` maps the behaviour's state (and its steering, with the lane
+lost) to a desire, in one place.
 """
 from __future__ import annotations
 
@@ -34,13 +35,23 @@ SMALL_SPEC = InputSpec(96, 72, "HSV", "NCHW", 1.0 / 255.0, (0.0, 0.0, 0.0), (180
 DEFAULT_MODEL = Path(__file__).resolve().parent / "models" / "pilot.onnx"
 
 
-def desire_of(state: str) -> str:
-    """The desire the planner feeds the pilot for a behaviour state: the exit of a planned
-    junction (`junction-left` -> left), else straight on along the lane."""
+# with the lane lost, a course this sharp is a turn (VIA's car: 7.5 degrees of wheel, a 15 m
+# radius; `eval pilot`'s "turn" bin starts at 17 m)
+LOST_TURN_STEERING = 0.3
+
+
+def desire_of(state: str, steering: float = 0.0) -> str:
+    """The desire the planner feeds the pilot for a behaviour state and its own steering: the
+    exit of a planned junction (`junction-left` -> left); with the lane lost, the side its
+    course along the centre line it last traced turns to, where that is a turn (a tight bend
+    leaves the view sideways, and a pilot that sees only verge there eases off: VIA seed 0's
+    corner); else straight on along the lane."""
     if state.startswith("junction-"):
         turn = state.split("-", 1)[1]
         if turn in DESIRES:
             return turn
+    if state == "lost" and abs(steering) >= LOST_TURN_STEERING:
+        return "right" if steering > 0 else "left"
     return "straight"
 
 
@@ -139,7 +150,7 @@ class PilotSteering:
             if in_junction or self.settling:
                 self.last = None
                 return planner_steering
-        self.last = self.model.step(frame_bgr, desire_of(state))
+        self.last = self.model.step(frame_bgr, desire_of(state, planner_steering))
         return self.last.steering
 
     def reset(self) -> None:

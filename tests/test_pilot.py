@@ -328,7 +328,7 @@ def test_a_short_closed_loop_drive_steers_with_the_pilot(pilot):
                        show_progress=False)["time_s"] == pytest.approx(1.0, abs=0.05)
 
 
-def test_at_a_planned_junction_the_planner_steers_by_default_or_the_pilot_told_the_exit():
+def test_at_a_planned_junction_the_planner_steers_by_default_or_the_pilot_told_the_exit_as_the_lost_turn():
     from signlane.pilot import PilotSteering
 
     class Model:
@@ -357,6 +357,15 @@ def test_at_a_planned_junction_the_planner_steers_by_default_or_the_pilot_told_t
     assert steer.steer(img, "cruise", 0.3, LaneEstimate("auto", False)) == 0.3  # lost: the planner's
     assert steer.steer(img, "cruise", 0.02, straight) == 0.05  # lined up: the pilot's from here on
     assert steer.steer(img, "cruise", 0.4, turning) == 0.05
+    # with the lane lost the pilot steers, told the way the planner's course along the line it
+    # last traced turns, where that is a turn (VIA seed 0's tight corner: the pilot, seeing only
+    # verge, eased off to 0.05 and left the road; told "right" it turned in and found the lane)
+    m.asked.clear()
+    lost = PilotSteering(m)
+    assert lost.steer(img, "lost", 0.8) == 0.6 and lost.steer(img, "lost", -0.35) == -0.6
+    assert lost.steer(img, "lost", 0.2) == 0.05 and lost.steer(img, "cruise", 0.8, straight) == 0.05
+    assert m.asked == ["right", "left", "straight", "straight"]
+    assert desire_of("lost", 0.31) == "right" and desire_of("lost", -0.29) == "straight"
 
 
 def test_with_a_pilot_a_lost_lane_slows_the_car_to_a_crawl_not_a_stand(pilot):

@@ -8,7 +8,8 @@ A recording is a folder a person can open and a learner can read:
                     speed_mps, time when sent), the command sent, what perception saw, the
                     teacher's own command ("teacher": the label, which differs from "command"
                     where the applied steering was perturbed on purpose) and the planner's
-                    "desire" (the exit it chose: left/straight/right)
+                    "desire" (the exit it chose, or the way its course turns with the lane
+                    lost: left/straight/right; `signlane.pilot.desire_of`)
   manifest.json     written last, on a clean shutdown: counts, the resolved config and, from the
                     simulator (`signlane sim --record`, `signlane gen pilot`), "drive": the track,
                     style, looks and perturbation. As for every signlane dataset, a folder is
@@ -71,7 +72,7 @@ def frame_record(frame_id: str, client: int, tel: Telemetry, perception: Percept
                         "state": sent.state},
             "teacher": {"steering": _round(teacher.steering, 4), "throttle": _round(teacher.throttle, 4),
                         "state": teacher.state},
-            "desire": desire_of(teacher.state),
+            "desire": desire_of(teacher.state, teacher.steering),
             "lane": {"method": lane.method, "found": bool(lane.found), "offset": _round(lane.offset, 4),
                      "heading": _round(lane.heading, 5), "curvature": _round(lane.curvature, 6),
                      "confidence": _round(lane.confidence, 3)},
