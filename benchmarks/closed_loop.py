@@ -155,6 +155,9 @@ def main() -> None:
     for style in a.style:
         maps = [] if a.no_bundled or a.tracks else BUNDLED + (via_maps(a.via_maps) if style == "via" else [])
         names = a.tracks or maps + [f"seed{s}" for s in range(a.first_seed, a.first_seed + a.seeds)]
+        if not names:
+            ap.error(f"style {style}: no track to drive (--seeds {a.seeds} and no maps: --no-bundled, or no VIA "
+                     f"maps in {a.via_maps}); give --seeds N or --tracks")
         jobs = [(n, m, str(a.out) if a.out else None, lk == "random", style, d, sets)
                 for lk in looks for d, sets in drivers for m in a.modes for n in names]
         print(f"\n### style {style}\n")
