@@ -108,7 +108,7 @@ def test_quantize_makes_an_int8_classifier_that_keeps_the_labels(trained, tmp_pa
     fp32, int8 = SignClassifier(onnx_path).probabilities(crops), SignClassifier(out).probabilities(crops)
     assert (fp32.argmax(1) == int8.argmax(1)).mean() >= 0.95 and np.abs(fp32 - int8).max() < 0.2
     assert report["int8"]["agreement"] >= 0.95 and abs(report["int8"]["accuracy_drop"]) <= 0.05
-    # an int8 file again, the shipped models' folder, a crop set without a val split: one line each
+    # an int8 file again, the shipped models' folder, a folder that holds no crop set: one line each
     for argv, words in ((["quantize", "signs", str(out), "--data", str(root / "data"), "--out", str(tmp_path / "qq.onnx")],
                          "already quantized"),
                         (["quantize", "signs", str(onnx_path), "--data", str(root / "data"), "--out",
