@@ -35,12 +35,12 @@ def export_signs(ckpt: str | Path, out: str | Path, int8: bool = False, metrics:
     report.update({"data_hash": info["data_hash"], "metrics": metrics})
     val = _val_crops(roots, spec) if roots else None
     if val is not None:
-        report["val_accuracy"] = _accuracy(out, *val)
+        fp32 = _predict(out, val[0])
+        report["val_accuracy"] = float((fp32 == val[1]).mean())
     if int8:
         if val is None:
             raise ValueError(f"--int8: no val crops to calibrate on in {', '.join(roots)}")
-        report["int8"] = _int8(out, out.with_name(out.stem + "_int8.onnx"), val, spec, roots)
-        report["int8"]["accuracy_drop"] = report["val_accuracy"] - report["int8"]["val_accuracy"]
+        report["int8"] = _int8(out, out.with_name(out.stem + "_int8.onnx"), val, fp32, spec, roots)
     return report
 
 
@@ -58,26 +58,28 @@ def quantize_signs(model: str | Path, data: list[str | Path], out: str | Path) -
     val = _val_crops(roots, spec)
     if val is None:
         raise ValueError(f"{', '.join(roots)}: no val crops to calibrate on")
-    report = {"model": str(model), "val_crops": len(val[1]), "val_accuracy": _accuracy(model, *val)}
-    report["int8"] = _int8(model, out, val, spec, roots)
-    report["int8"]["accuracy_drop"] = report["val_accuracy"] - report["int8"]["val_accuracy"]
+    fp32 = _predict(model, val[0])
+    report = {"model": str(model), "val_crops": len(val[1]), "val_accuracy": float((fp32 == val[1]).mean())}
+    report["int8"] = _int8(model, out, val, fp32, spec, roots)
     return report
 
 
 CALIBRATION_CROPS = 1024  # val crops the int8 ranges are calibrated on (all of them below that)
 
 
-def _int8(src: Path, dst: Path, val: tuple[list[np.ndarray], np.ndarray], spec, roots: list[str]) -> dict:
-    """Quantize src to dst on val's first crops; dst's accuracy and label agreement with src on all of val."""
+def _int8(src: Path, dst: Path, val: tuple[list[np.ndarray], np.ndarray], fp32: np.ndarray, spec,
+          roots: list[str]) -> dict:
+    """Quantize src to dst on val's first crops; dst's accuracy on all of val, its drop from src's
+    and how often its label is src's (`fp32`: src's labels of val)."""
     crops, labels = val
     n = min(len(crops), CALIBRATION_CROPS)
     calib = [preprocess_crops(crops[i:min(i + 64, n)], spec) for i in range(0, n, 64)]
     note = f"int8 (QDQ, per-channel weights), calibrated on {n} val crops of {', '.join(roots)}; from {src.name}"
     quantize_int8(src, dst, calib, {"signlane.quantized": note})
-    fp32 = SignClassifier(src, threads=2, batch=256).probabilities(crops).argmax(axis=1)
-    int8 = SignClassifier(dst, threads=2, batch=256).probabilities(crops).argmax(axis=1)
-    return {"path": str(dst), "bytes": dst.stat().st_size, "calibration_crops": n,
-            "val_accuracy": float((int8 == labels).mean()), "agreement": float((int8 == fp32).mean())}
+    int8 = _predict(dst, crops)
+    accuracy = float((int8 == labels).mean())
+    return {"path": str(dst), "bytes": dst.stat().st_size, "calibration_crops": n, "val_accuracy": accuracy,
+            "accuracy_drop": float((fp32 == labels).mean()) - accuracy, "agreement": float((int8 == fp32).mean())}
 
 
 def _is_quantized(path: Path) -> bool:
@@ -94,7 +96,6 @@ def _val_crops(roots: list[str], spec) -> tuple[list[np.ndarray], np.ndarray] | 
     return [cv2.imread(str(p)) for p, _ in items], np.array([label for _, label in items])
 
 
-def _accuracy(model_path: Path, crops: list[np.ndarray], labels: np.ndarray) -> float:
-    clf = SignClassifier(model_path, threads=2, batch=256)
-    pred = clf.probabilities(crops).argmax(axis=1)
-    return float((pred == labels).mean())
+def _predict(model_path: Path, crops: list[np.ndarray]) -> np.ndarray:
+    """The model's label (class index) of each crop."""
+    return SignClassifier(model_path, threads=2, batch=256).probabilities(crops).argmax(axis=1)

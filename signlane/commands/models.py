@@ -241,11 +241,17 @@ def add_export(sub) -> None:
     p.set_defaults(func=_run_export)
 
 
-def _run_export(args) -> int:
+def _refuse_models_dir(out: Path, command: str, kind: str) -> None:
+    """A model written straight into the package's models folder would, with an editable install,
+    be what every later command uses, unasked: `signlane ship` is the step that does that."""
     from signlane.ship import in_models_dir
-    if in_models_dir(args.out):  # an editable install would make every later command use it, unasked
-        raise UserError(f"--out {args.out}: export does not write into the shipped models' folder; export to "
-                        f"runs/ or out/, then `signlane ship FILE.onnx --as {args.kind}`")
+    if in_models_dir(out):
+        raise UserError(f"--out {out}: {command} does not write into the shipped models' folder; write to "
+                        f"runs/ or out/, then `signlane ship FILE.onnx --as {kind}`")
+
+
+def _run_export(args) -> int:
+    _refuse_models_dir(args.out, "export", args.kind)
     if args.kind in ("lanes", "pilot"):
         return _run_export_lanes(args)
     try:
@@ -298,10 +304,7 @@ def add_quantize(sub) -> None:
 
 def _run_quantize(args) -> int:
     from signlane.onnx_model import ModelError
-    from signlane.ship import in_models_dir
-    if in_models_dir(args.out):
-        raise UserError(f"--out {args.out}: quantize does not write into the shipped models' folder; write to "
-                        f"runs/ or out/, then `signlane ship FILE.onnx --as {args.kind}`")
+    _refuse_models_dir(args.out, "quantize", args.kind)
     try:
         from signlane_export.onnx_export import ExportError
         from signlane_export.signs import quantize_signs
