@@ -69,8 +69,9 @@ def _run(job: tuple) -> dict:
     from signlane.sim.simulator import SimConfig
     lock = mode == "lockstep"
     t0 = time.perf_counter()
-    looks = SimConfig(random_looks=True, looks_seed=int(name[4:]) if name.startswith("seed") else 0) \
-        if random_looks else SimConfig()
+    # a procedural track's scenery (and its camera noise) is seeded by the track's seed, with
+    # either looks, as `signlane sim --track random --seed N` seeds it: a row is that command's drive
+    looks = SimConfig(random_looks=random_looks, looks_seed=int(name[4:]) if name.startswith("seed") else 0)
     where = f"{style}-{_label(name)}-{mode}-{driver}{'-random' if random_looks else ''}"
     rep = run_session(_track(name, style), looks, Path(out) / where if out else None,
                       Config.load(None, list(sets)), lockstep=lock, with_driver=not lock, show_progress=False)

@@ -86,14 +86,42 @@ class RecordingDriver:
         return None, Command(0.2, 0.4, "cruise")
 
 
-def test_inprocess_hands_the_simulated_time_beside_vias_bytes(track):
+def test_inprocess_sends_and_answers_the_bytes_of_a_lockstep_client(track):
     sim = Simulator(track, small(max_seconds=0.49))
     driver = RecordingDriver()
     run_inprocess(sim, driver)
     assert len(driver.calls) == 15
-    assert all(tel.time is None for tel, _ in driver.calls)  # nothing on the wire that VIA would not send
-    assert [now for _, now in driver.calls] == pytest.approx([k / 30 for k in range(15)])
+    # the simulated time travels on the message, with the wire's 4 decimals, and nothing beside it
+    assert [tel.time for tel, _ in driver.calls] == [round(k / 30, 4) for k in range(15)]
+    assert all(now is None for _, now in driver.calls)
     assert sim.vehicle.wheel_deg == 5.0
+
+
+def test_inprocess_and_a_lockstep_drive_server_drive_alike(track):
+    """One track, the default driver: in this process and through a real drive server in lockstep,
+    the same commands, so the same path to the last millimetre (they once parted after a minute)."""
+    from signlane.config import Config
+    from signlane.sim.driver import Driver
+    from signlane.sim.server import DriveServer, ServerOptions
+    cfg = SimConfig(width=320, height=240, max_seconds=4.0)
+    paths = []
+    for how in ("inprocess", "server"):
+        sim, path = Simulator(track, cfg), []
+
+        def progress(s, cmd, perception):
+            pose = s.vehicle.pose
+            path.append((round(pose.x, 6), round(pose.y, 6), round(s.vehicle.wheel_deg, 6)))
+        if how == "inprocess":
+            with Driver(Config()) as driver:
+                run_inprocess(sim, driver, progress)
+        else:
+            with DriveServer(Config(), ServerOptions(port=0, sync_signs=True, web=False)) as srv:
+                run_client(sim, srv.url, lockstep=True, progress=progress)
+        paths.append(path)
+    assert len(paths[0]) == len(paths[1]) > 100
+    assert paths[0] == paths[1]
+    start, end = np.array(paths[0][0][:2]), np.array(paths[0][-1][:2])
+    assert np.hypot(*(end - start)) > 5.0  # the car drove off (not two cars standing still)
 
 
 class FakeServer:

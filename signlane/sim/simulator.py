@@ -5,8 +5,9 @@ strings, mph, a JPEG of quality 75; the image one frame behind the numbers, as V
 applies replies as VIA's car does (signlane/sim/vehicle.py) and referees the drive
 (signlane/sim/course.py). Ways to run it, each calling `progress(sim, command, perception)`
 after every frame (perception None when remote):
-- `run_inprocess(sim, driver)`: lockstep with a Driver object in the same process (tests, demo);
-  VIA's exact bytes, with the simulated time handed to the driver beside them (`now=`).
+- `run_inprocess(sim, driver)`: lockstep with a Driver object in the same process (tests, demo,
+  the closed-loop benchmark): the bytes of a lockstep client run (below) both ways, so it drives
+  as `sim --with-driver --lockstep` does, without the socket.
 - `run_client(sim, url, lockstep)`: as a WebSocket client of a drive server, sending binary
   frames as VIA does. Real time (lockstep False) is VIA's behaviour: exactly VIA's bytes, frames
   paced at `fps` (or as fast as they can be made), never waiting for a reply, each reply applied
@@ -27,7 +28,8 @@ import numpy as np
 
 from signlane.camera import VIA_CAMERA_FORWARD_M, via_camera
 from signlane.sim.course import CourseTracker
-from signlane.sim.protocol import ProtocolError, decode_command, decode_telemetry, encode_jpeg, encode_telemetry
+from signlane.sim.protocol import (ProtocolError, decode_command, decode_telemetry, encode_command, encode_jpeg,
+                                   encode_telemetry)
 from signlane.sim.score import Score
 from signlane.sim.vehicle import Vehicle, VehicleParams
 from signlane.types import Command
@@ -162,13 +164,17 @@ class Simulator:
 
 
 def run_inprocess(sim: Simulator, driver, progress=None) -> dict:
-    """Lockstep with a Driver in this process, through VIA's exact bytes; the simulated time goes
-    to the driver beside the message (`now=`), so the run is deterministic with no extra key."""
+    """Lockstep with a Driver in this process, through the exact bytes a lockstep drive server
+    sees and sends: the frame with its `"time"` key (4 decimals, as on the wire) and the answer
+    as the server encodes it and VIA reads it. So the same track drives the same way here and
+    through `sim --with-driver --lockstep` (the simulated time unrounded, or the steering
+    unclipped, once made them two drives that parted after a minute)."""
     while not sim.done:
-        msg = sim.observe(send_time=False)
+        msg = sim.observe(send_time=True)
         t0 = time.perf_counter()
-        perception, cmd = driver.step(decode_telemetry(msg), now=sim.t)
-        sim.advance((cmd.steering, cmd.throttle), (time.perf_counter() - t0) * 1e3)
+        perception, cmd = driver.step(decode_telemetry(msg))
+        reply = decode_command(encode_command(cmd.steering, cmd.throttle))
+        sim.advance(reply, (time.perf_counter() - t0) * 1e3)
         if progress is not None:
             progress(sim, cmd, perception)
     return sim.report()
