@@ -119,19 +119,43 @@ class JunctionDetector:
         mask = ((road | paint) & self.visible).astype(np.uint8) * 255
         return cv2.morphologyEx(mask, cv2.MORPH_OPEN, _OPEN_KERNEL)
 
-    def line_response(self, image_bgr: np.ndarray) -> np.ndarray:
+    def line_response(self, image_bgr: np.ndarray, rows: tuple[int, int] | None = None) -> np.ndarray:
         """uint8 image: how far each pixel's lightness stands above the pixels around it within a
-        line's width across (a horizontal top-hat): high on painted lines, low on wide bright areas."""
-        grey = cv2.cvtColor(image_bgr, cv2.COLOR_BGR2LAB)[..., 0]  # L lifts dark roads' lines
-        k = max(3, int(round(image_bgr.shape[1] / 320 * self.p.edge_line_max_px)) | 1)
-        return cv2.morphologyEx(grey, cv2.MORPH_TOPHAT, np.ones((1, k), np.uint8))
+        line's width across (a horizontal top-hat): high on painted lines, low on wide bright areas.
+        rows (lo, hi): only those image rows are worked out (the rest 0); the kernel is one row
+        tall, so each row's response is the same as in the whole image's."""
+        h = image_bgr.shape[0]
+        lo, hi = rows if rows is not None else (0, h)
+        lo, hi = max(lo, 0), min(hi, h)
+        out = np.zeros(image_bgr.shape[:2], np.uint8)
+        if hi > lo:
+            grey = cv2.cvtColor(image_bgr[lo:hi], cv2.COLOR_BGR2LAB)[..., 0]  # L lifts dark roads' lines
+            k = max(3, int(round(image_bgr.shape[1] / 320 * self.p.edge_line_max_px)) | 1)
+            out[lo:hi] = cv2.morphologyEx(grey, cv2.MORPH_TOPHAT, np.ones((1, k), np.uint8))
+        return out
+
+    def band_rows(self, x_ms, w: int, h: int) -> tuple[int, int]:
+        """The image rows (lo, hi) the edge bands along ground x = each of x_ms cross."""
+        vs = [self._band(x, w, h)[1] for x in x_ms]
+        vs = [v for v in vs if v.size]
+        return (min(int(v.min()) for v in vs), max(int(v.max()) for v in vs) + 1) if vs else (0, 0)
 
     def edge_paint(self, response: np.ndarray, x_m: float) -> np.ndarray:
         """bool per bird's-eye row: a line runs along ground x = x_m (within edge_band_m) at that
         row's distance, as a solid road edge line does. Looked for in the image itself (`response`
-        from line_response), where a far line is still sharp; the bird's-eye view smears it."""
-        p = self.p
+        from line_response, over at least band_rows([x_m])), where a far line is still sharp; the
+        bird's-eye view smears it."""
         h, w = response.shape[:2]
+        rows, v, cols = self._band(x_m, w, h)
+        out = np.zeros(self.bev.size[1], bool)
+        if len(rows):
+            out[rows] = response[v, cols].max(axis=1) > self.p.edge_contrast
+        return out
+
+    def _band(self, x_m: float, w: int, h: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(bird's-eye rows, their image rows (n, 1), each row's band of image columns (n, k)) of
+        the edge band along ground x = x_m in a w x h image; made once per place and size."""
+        p = self.p
         key = (round(x_m, 2), w, h)
         if key not in self._bands:
             y = self._y_of_row(np.arange(self.bev.size[1]))
@@ -145,11 +169,7 @@ class JunctionDetector:
             # each row's band as pixel indices, short bands padded by repeating their last pixel
             cols = np.minimum(u0[:, None] + np.arange(int((u1 - u0).max(initial=1))), u1[:, None] - 1)
             self._bands[key] = (rows, v[rows][:, None], cols)
-        rows, v, cols = self._bands[key]
-        out = np.zeros(self.bev.size[1], bool)
-        if len(rows):
-            out[rows] = response[v, cols].max(axis=1) > p.edge_contrast
-        return out
+        return self._bands[key]
 
     def outer_road_share(self, mask: np.ndarray) -> float:
         """Share of the visible bird's-eye pixels beyond outer_m to either side that look like road."""
@@ -194,7 +214,8 @@ class JunctionDetector:
         road_edges = (-1.5 * lw - 0.5, 0.5 * lw + 0.5)  # two-lane road, car in the right lane
         out = {}
         lines = (-1.5 * lw, 0.5 * lw)  # where each side's solid edge line runs
-        response = self.line_response(image_bgr)
+        # (only the rows the two edge bands cross: about half the image)
+        response = self.line_response(image_bgr, self.band_rows(lines, image_bgr.shape[1], image_bgr.shape[0]))
         for side, edge, line, sgn in (("left", road_edges[0], lines[0], -1), ("right", road_edges[1], lines[1], 1)):
             a, b = sorted((edge + sgn * p.strip_m[0], edge + sgn * p.strip_m[1]))
             strip = mask[:, self._col(a):self._col(b) + 1] > 0

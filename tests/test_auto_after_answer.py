@@ -98,3 +98,54 @@ def test_the_lanes_are_those_of_the_look_made_at_once_with_tracks_forgotten_betw
         seen.append(now.state.lanes_seen)
     assert deferred >= 20 and max(seen) > 0.7  # both paths ran: put off, and at once near the bar
     assert calls  # the paint method did run
+
+
+@pytest.fixture(scope="module")
+def painted_frames():
+    """60 consecutive 320x240 frames of a drive on a painted two-lane road (default look)."""
+    sampler = DriveSampler(3, SamplerConfig(320, 240, style="painted", effects="normal", randomise=False))
+    return [sampler.sample(i).image for i in range(60)]
+
+
+def _counting_carriageway(monkeypatch):
+    calls = []
+    real = auto_module.carriageway
+    monkeypatch.setattr(auto_module, "carriageway", lambda *a: calls.append(1) or real(*a))
+    return calls
+
+
+def test_a_two_lane_roads_carriageway_waits_for_the_answer_where_the_paint_is_found(painted_frames, monkeypatch):
+    """With `edges_after_answer`, a frame of a road known to have a centre line whose paint is
+    found is answered from the paint alone; its carriageway scan is made by settle(). The lanes,
+    and the road's state once settled, are those of the scan made at once."""
+    calls = _counting_carriageway(monkeypatch)
+    cam = via_camera(320, 240)
+    late, now = lanes.get("auto", camera=cam, edges_after_answer=True), lanes.get("auto", camera=cam)
+    waited = 0
+    for i, img in enumerate(painted_frames):
+        calls.clear()
+        a = late(img)
+        if late.state.pending is not None:
+            waited += 1
+            assert calls == [] and a.basis == "paint" and a.found  # answered without the scan
+            late.settle()
+            assert calls == [1] and late.state.pending is None
+        b = now(img)
+        assert (a.found, a.basis, a.offset, a.heading, a.lane_width_m) == (b.found, b.basis, b.offset, b.heading,
+                                                                            b.lane_width_m), i
+        assert (late.state.road.centre_paint, late.state.road.width_m) == (now.state.road.centre_paint,
+                                                                           now.state.road.width_m), i
+        assert np.array_equal(late.state.road.scan.y, now.state.road.scan.y)
+    assert now.state.two_lane and waited >= 50  # all but the first frames, which learn the road has a centre line
+
+
+def test_only_a_caller_that_answers_puts_the_carriageway_off(painted_frames):
+    """The drive stack (which settles after each answer) sets `edges_after_answer`; infer's
+    perception, whose every frame's drivable mask is its own, does not."""
+    from signlane.drive.perception import PerceptionStack
+    stack = DriveStack(Config.load(None, ["signs.enabled=false"]))
+    stack.drive(cv2.resize(painted_frames[0], (640, 480)), 3.0, 0.0, 0.0)
+    assert stack.perception.lane.params.edges_after_answer
+    infer_like = PerceptionStack(Config.load(None, ["signs.enabled=false"]), junctions=False)
+    infer_like.lanes_on(painted_frames[0])
+    assert not infer_like.lane.params.edges_after_answer

@@ -25,8 +25,13 @@ class PerceptionStack:
     """lanes_width: lanes and junctions run on frames scaled to this width (0 = as they come).
     sync_signs False runs the sign stage in a worker thread on the newest frame (real time)."""
 
-    def __init__(self, config: Config, lanes_width: int = 0, sync_signs: bool = True, junctions: bool = True):
+    def __init__(self, config: Config, lanes_width: int = 0, sync_signs: bool = True, junctions: bool = True,
+                 after_answer: bool = False):
+        """after_answer: the caller calls answered() once each frame's command is out (a driver):
+        the lane method may then put work off until then that only later frames read (auto's
+        `edges_after_answer`); off, each frame's outputs are all its own (infer)."""
         self.config = config
+        self.after_answer = after_answer
         self.lanes_width = lanes_width
         self.with_junctions = junctions
         cfg_lanes = config.lanes
@@ -54,6 +59,8 @@ class PerceptionStack:
         self.small_camera = cfg.camera.camera(*self.scaled)
         self.lane = lanes.get(cfg.lanes.method, camera=self.small_camera, variant=cfg.lanes.variant,
                               **cfg.lanes.overrides())
+        if self.after_answer and hasattr(self.lane.params, "edges_after_answer"):
+            self.lane.params = replace(self.lane.params, edges_after_answer=True)
         self.junctions = JunctionDetector(self.small_camera) if self.with_junctions else None
         self._size = (width, height)
 

@@ -11,7 +11,11 @@ clearly narrower than the carriageway: then the lane is that one. `LaneEstimate.
 its frame (the running share is too low for one more sighting to lift it over the bar), the
 frame's lane is the carriageway whatever the look finds, and the look is made after the frame's
 answer (`LaneMethod.settle`, which the drive stack calls once the command is out; else first
-thing on the next frame): the lanes are the same as with the look made at once.
+thing on the next frame): the lanes are the same as with the look made at once. On a road with a centre line the lane is
+the paint's wherever it is found, so with `edges_after_answer` (the drive stack's setting) the
+carriageway's scan of such a frame waits for its answer in the same way: whether the road still
+has a centre line, and the scan junctions read, are then those of the frame before, and the
+frame shows the frame before's drivable mask.
 
 With a road model (`model`: `--set lanes.model=FILE`, or `shipped`), the road is the model's
 (one run of the network per frame) instead of colour rules: the carriageway is scanned in its
@@ -62,6 +66,11 @@ class AutoParams:
     # "" = colour rules (no model)
     threads: int = 1  # the road model's onnxruntime threads
     model_paint: bool = False  # lanes fitted to the model's paint (else to sliding-window's own binary)
+    # on a road with a centre line, the carriageway of a frame whose paint is found is scanned
+    # after the frame's answer (AutoState.settle): its lane is the paint's either way. Only for a
+    # caller that settles after each answer or reads the frame's drivable mask one frame late (the
+    # drive stack sets it); off, every frame's outputs are its own (infer, eval, autolabel)
+    edges_after_answer: bool = False
 
     @classmethod
     def published(cls) -> "AutoParams":
@@ -81,15 +90,28 @@ class _Look:
 
 
 @dataclass(frozen=True)
+class _Edges:
+    """A two-lane road's carriageway scan of a frame whose lane the paint gave, put off until the
+    frame's answer is out (AutoParams.edges_after_answer)."""
+
+    image_bgr: np.ndarray
+    camera: Camera
+    maps: seg_model.FrameMaps | None
+    forgot: bool = False  # the tracks were forgotten after the frame (the scan goes after it is made)
+
+
+@dataclass(frozen=True)
 class AutoState:
     road: RoadEdgesState = field(default_factory=RoadEdgesState)
     paint: SlidingWindowState | None = None
     lanes_seen: float | None = None  # running share of frames where paint bounded a lane inside the carriageway
     since_check: int = 0  # frames since that was last looked at
     maps: seg_model.FrameMaps | None = None  # the road model's maps of the last frame (junctions read them)
-    # the last frame's look for lane paint, when it was put off: made by settle(), which a driver
-    # calls once the frame's command is out, or else first thing on the next frame
-    pending: _Look | None = None
+    # the last frame's look for lane paint (a kerbed road) or carriageway scan (a road with a
+    # centre line), when it was put off: made by settle(), which a driver calls once the frame's
+    # command is out, or else first thing on the next frame
+    pending: _Look | _Edges | None = None
+    drivable: np.ndarray | None = None  # the last carriageway's road mask (a frame whose scan waits shows it)
 
     @property
     def two_lane(self) -> bool:
@@ -97,17 +119,22 @@ class AutoState:
 
     def forget_tracks(self) -> "AutoState":
         pending = None if self.pending is None else replace(self.pending, forgot=True)
-        return AutoState(self.road.forget_tracks(), None, self.lanes_seen, maps=self.maps, pending=pending)
+        return AutoState(self.road.forget_tracks(), None, self.lanes_seen, maps=self.maps, pending=pending,
+                         drivable=self.drivable)
 
     def settle(self, params: "AutoParams") -> "AutoState":
-        """This state with the pending look for lane paint made (itself when none is pending):
-        what the look would have left had it been made during its frame."""
-        look = self.pending
-        if look is None:
+        """This state with the pending work made (itself when none is pending): what the work
+        would have left had it been made during its frame."""
+        work = self.pending
+        if work is None:
             return self
-        _, paint_state, lanes_seen = _look(look.image_bgr, look.camera, params, look.paint, self.maps, look.width_m,
-                                           look.scan, self.lanes_seen)
-        return replace(self, paint=None if look.forgot else paint_state, lanes_seen=lanes_seen, since_check=0,
+        if isinstance(work, _Edges):
+            # (the scan reads the road's width, colour and centre-paint memory, never the last scan)
+            _, _, _, road, mask = carriageway(work.image_bgr, work.camera, params.road, self.road, work.maps)
+            return replace(self, road=road.forget_tracks() if work.forgot else road, pending=None, drivable=mask)
+        _, paint_state, lanes_seen = _look(work.image_bgr, work.camera, params, work.paint, self.maps, work.width_m,
+                                           work.scan, self.lanes_seen)
+        return replace(self, paint=None if work.forgot else paint_state, lanes_seen=lanes_seen, since_check=0,
                        pending=None)
 
 
@@ -121,6 +148,16 @@ def auto(image_bgr: np.ndarray, camera: Camera | None, params: AutoParams,
         return LaneEstimate(NAME, False, debug_mask=np.zeros((h, w), np.uint8)), state
     cam = camera_for(image_bgr, camera)
     maps = _road_maps(image_bgr, params)
+    painted = None  # the paint method's (estimate, state) on this frame, once looked for
+    if params.edges_after_answer and state.road.two_lane:
+        # a road with a centre line: where the paint is found it is the lane, and the carriageway
+        # (whether the road still has a centre line, its trace for junctions) can wait for the answer
+        painted = _paint(image_bgr, cam, params, state.paint, maps)
+        est, paint_state = painted
+        if est.found:
+            return replace(est, method=NAME, basis="paint", drivable_mask=state.drivable), \
+                AutoState(state.road, paint_state, state.lanes_seen, maps=maps,
+                          pending=_Edges(image_bgr, cam, maps), drivable=state.drivable)
     left, right, width, road_state, mask = carriageway(image_bgr, cam, params.road, state.road, maps)
     if not road_state.two_lane:
         # no centre line on the carriageway's middle: a kerbed road (VIA's), or a wide road whose
@@ -132,27 +169,28 @@ def auto(image_bgr: np.ndarray, camera: Camera | None, params: AutoParams,
         # paint method costs about as much as the carriageway again)
         if state.lanes_seen is not None and state.lanes_seen < params.settled_below \
                 and state.since_check + 1 < params.settled_every:
-            return whole(), AutoState(road_state, None, state.lanes_seen, state.since_check + 1, maps)
+            return whole(), AutoState(road_state, None, state.lanes_seen, state.since_check + 1, maps, drivable=mask)
         if state.lanes_seen is not None and _remember(state.lanes_seen, 1.0, params.lane_memory) <= params.lanes_above:
             # one look cannot make it a lane road on this frame: its lane is the carriageway
             # whatever the look finds, so the look waits until the frame's answer is out
             return whole(), AutoState(road_state, state.paint, state.lanes_seen, maps=maps,
-                                    pending=_Look(image_bgr, cam, width, road_state.scan, state.paint))
+                                    pending=_Look(image_bgr, cam, width, road_state.scan, state.paint), drivable=mask)
         est, paint_state, lanes_seen = _look(image_bgr, cam, params, state.paint, maps, width, road_state.scan,
                                              state.lanes_seen)
         if lanes_seen > params.lanes_above:
             if est.found:
                 return replace(est, method=NAME, basis="paint", drivable_mask=mask), \
-                    AutoState(road_state, paint_state, lanes_seen, maps=maps)
-            return replace(est, method=NAME), AutoState(road_state, paint_state, lanes_seen, maps=maps)
-        return whole(), AutoState(road_state, paint_state, lanes_seen, maps=maps)
-    est, paint_state = _paint(image_bgr, cam, params, state.paint, maps)
+                    AutoState(road_state, paint_state, lanes_seen, maps=maps, drivable=mask)
+            return replace(est, method=NAME), AutoState(road_state, paint_state, lanes_seen, maps=maps, drivable=mask)
+        return whole(), AutoState(road_state, paint_state, lanes_seen, maps=maps, drivable=mask)
+    # (looked for already when the carriageway waited for paint that was not found: the same call)
+    est, paint_state = painted or _paint(image_bgr, cam, params, state.paint, maps)
     if est.found:
         return replace(est, method=NAME, basis="paint", drivable_mask=mask), \
-            AutoState(road_state, paint_state, state.lanes_seen, maps=maps)
+            AutoState(road_state, paint_state, state.lanes_seen, maps=maps, drivable=mask)
     # no paint found this frame: the right half of the carriageway
     return right_half_estimate(NAME, cam, left, right, width, mask, (h, w)), \
-        AutoState(road_state, paint_state, state.lanes_seen, maps=maps)
+        AutoState(road_state, paint_state, state.lanes_seen, maps=maps, drivable=mask)
 
 
 def _road_maps(image_bgr: np.ndarray, params: AutoParams) -> seg_model.FrameMaps | None:
