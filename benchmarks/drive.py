@@ -16,6 +16,7 @@ round trip only. It runs beside every row and is timed right before it in each r
 is the median over repeats of (row median / baseline median), robust to load drifting mid-run.
 
     python benchmarks/drive.py [--frames 40] [--repeats 3] [--method NAME ...] [--viewers N]
+                               [--style painted|via|mixed] [--looks random|default]
 
 Lane-method rows run with signs off; the last row is the default config (signs on). The server
 reports its own split of each frame's time: decode (JSON, base64, JPEG), perceive (the driver)
@@ -272,12 +273,18 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=3, help="repeats; the table shows medians (default 3)")
     ap.add_argument("--method", action="append", help="lane method(s) (default: all available)")
     ap.add_argument("--seed", type=int, default=4)
+    ap.add_argument("--style", choices=["painted", "via", "mixed"], default="painted",
+                    help="the drive's road (default painted; with random looks it may have no centre line)")
+    ap.add_argument("--looks", choices=["random", "default"], default="random",
+                    help="randomised looks and cameras (default) or the style's own (a painted road then has its "
+                         "dashed centre line)")
     ap.add_argument("--viewers", type=int, default=0,
                     help="also compare lockstep answer latency with this many monitor viewers attached (default 0)")
     ap.add_argument("--viewer-frames", type=int, default=300,
                     help="frames per run of the viewer comparison (the messages cycled; default 300)")
     args = ap.parse_args()
-    sampler = DriveSampler(args.seed, SamplerConfig(640, 480, effects="normal"))
+    sampler = DriveSampler(args.seed, SamplerConfig(640, 480, effects="normal", style=args.style,
+                                                    randomise=args.looks == "random"))
     messages = [encode_telemetry(0.0, 0.5, 8.0, encode_jpeg(sampler.sample(i).image), time=i / 30)
                 for i in range(args.frames)]
     kb = np.mean([len(m) for m in messages]) / 1024
@@ -289,7 +296,8 @@ def main() -> None:
         default = Config().lanes.method  # and the default driver as `signlane drive` runs it: signs on
         rows.append(measure(f"{default} + signs", default, True, messages, args.repeats, base_url, args.viewers,
                             args.viewer_frames))
-    print(f"640x480 frames, {kb:.0f} KB per message, {args.frames} frames x {args.repeats} repeats (medians)")
+    print(f"640x480 frames ({args.style} road, {args.looks} looks, seed {args.seed}), {kb:.0f} KB per message, "
+          f"{args.frames} frames x {args.repeats} repeats (medians)")
     print(table(["server", "answer median ms", "answer p99 ms", "30 fps med/p99", "decode med/p99", "perceive med/p99",
                  "server answer med/p99", "base ms", "x base", "lockstep fps", "flood ans/s", "driven %"],
                 [[r["name"], f"{r['median']:.1f}", f"{r['p99']:.1f}", f"{r['paced_median']:.1f} / {r['paced_p99']:.1f}",
