@@ -17,18 +17,34 @@ from signlane.lanes import auto as auto_module
 from signlane.world.sampling import DriveSampler, SamplerConfig
 
 
+def _drive(style: str, seed: int, n: int) -> list[np.ndarray]:
+    """n consecutive 320x240 frames of a drive in a style's default look."""
+    sampler = DriveSampler(seed, SamplerConfig(320, 240, style=style, effects="normal", randomise=False))
+    return [sampler.sample(i).image for i in range(n)]
+
+
 @pytest.fixture(scope="module")
 def via_frames():
-    """40 consecutive 320x240 frames of a drive on VIA's kerbed carriageway (default look)."""
-    sampler = DriveSampler(7, SamplerConfig(320, 240, style="via", effects="normal", randomise=False))
-    return [sampler.sample(i).image for i in range(40)]
+    """40 frames of a drive on VIA's kerbed carriageway."""
+    return _drive("via", 7, 40)
+
+
+@pytest.fixture(scope="module")
+def painted_frames():
+    """60 frames of a drive on a painted two-lane road (its dashed centre line)."""
+    return _drive("painted", 3, 60)
+
+
+def _counting(monkeypatch, name: str) -> list[int]:
+    """Count the calls `auto` makes to one of its parts (its module's `name`)."""
+    calls = []
+    real = getattr(auto_module, name)
+    monkeypatch.setattr(auto_module, name, lambda *a: calls.append(1) or real(*a))
+    return calls
 
 
 def _counting_paint(monkeypatch):
-    calls = []
-    real = auto_module._paint
-    monkeypatch.setattr(auto_module, "_paint", lambda *a: calls.append(1) or real(*a))
-    return calls
+    return _counting(monkeypatch, "_paint")
 
 
 def test_the_kerbed_roads_look_for_paint_waits_for_the_answer(via_frames, monkeypatch):
@@ -100,25 +116,11 @@ def test_the_lanes_are_those_of_the_look_made_at_once_with_tracks_forgotten_betw
     assert calls  # the paint method did run
 
 
-@pytest.fixture(scope="module")
-def painted_frames():
-    """60 consecutive 320x240 frames of a drive on a painted two-lane road (default look)."""
-    sampler = DriveSampler(3, SamplerConfig(320, 240, style="painted", effects="normal", randomise=False))
-    return [sampler.sample(i).image for i in range(60)]
-
-
-def _counting_carriageway(monkeypatch):
-    calls = []
-    real = auto_module.carriageway
-    monkeypatch.setattr(auto_module, "carriageway", lambda *a: calls.append(1) or real(*a))
-    return calls
-
-
 def test_a_two_lane_roads_carriageway_waits_for_the_answer_where_the_paint_is_found(painted_frames, monkeypatch):
     """With `edges_after_answer`, a frame of a road known to have a centre line whose paint is
     found is answered from the paint alone; its carriageway scan is made by settle(). The lanes,
     and the road's state once settled, are those of the scan made at once."""
-    calls = _counting_carriageway(monkeypatch)
+    calls = _counting(monkeypatch, "carriageway")
     cam = via_camera(320, 240)
     late, now = lanes.get("auto", camera=cam, edges_after_answer=True), lanes.get("auto", camera=cam)
     waited = 0

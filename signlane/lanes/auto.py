@@ -11,11 +11,11 @@ clearly narrower than the carriageway: then the lane is that one. `LaneEstimate.
 its frame (the running share is too low for one more sighting to lift it over the bar), the
 frame's lane is the carriageway whatever the look finds, and the look is made after the frame's
 answer (`LaneMethod.settle`, which the drive stack calls once the command is out; else first
-thing on the next frame): the lanes are the same as with the look made at once. On a road with a centre line the lane is
-the paint's wherever it is found, so with `edges_after_answer` (the drive stack's setting) the
-carriageway's scan of such a frame waits for its answer in the same way: whether the road still
-has a centre line, and the scan junctions read, are then those of the frame before, and the
-frame shows the frame before's drivable mask.
+thing on the next frame): the lanes are the same as with the look made at once. On a road with
+a centre line the lane is the paint's wherever it is found, so with `edges_after_answer` (the
+drive stack's setting) the carriageway's scan of such a frame waits for its answer in the same
+way: whether the road still has a centre line, and the scan junctions read, are then those of
+the frame before, and the frame shows the frame before's drivable mask.
 
 With a road model (`model`: `--set lanes.model=FILE`, or `shipped`), the road is the model's
 (one run of the network per frame) instead of colour rules: the carriageway is scanned in its
