@@ -31,6 +31,9 @@ class Opening:
     closed: bool  # the far edge was seen
     dead: bool | None = False  # the side road visibly ends (a dead end: never an exit); None: cannot tell
     cut: bool = False  # it began before its strip came into view: the side road starts nearer than near_m
+    # the ground x its near and far rows were found at (car frame): with the car askew to the road
+    # (out of a bend), a side road lies at another distance along the road than ahead of the car
+    x_m: float = 0.0
 
     @property
     def centre_m(self) -> float:
@@ -175,9 +178,9 @@ class JunctionDetector:
         """Share of the visible bird's-eye pixels beyond outer_m to either side that look like road."""
         return float((mask[self._outer] > 0).mean()) if self._outer.any() else 0.0
 
-    def _runs(self, frac: np.ndarray, seen: np.ndarray, paint: np.ndarray) -> Opening | None:
+    def _runs(self, frac: np.ndarray, seen: np.ndarray, paint: np.ndarray, x_m: float) -> Opening | None:
         """The nearest run of road rows (bottom = near) long enough to be a side road, along
-        which the edge line (`paint`, bool per row) is missing."""
+        which the edge line (`paint`, bool per row) is missing; x_m: the strip's middle."""
         p = self.p
         n = len(frac)
         # open road beside ours looks like road and has no edge line; gaps of a row or two in a
@@ -194,7 +197,7 @@ class JunctionDetector:
                 closed = top > 0 and bool(seen[top - 1])
                 cut = row + 1 < n and not seen[row + 1]  # it began before the strip came into view
                 if far - near >= p.min_open_m or ((cut or not closed) and far - near >= 1.5):
-                    return Opening(near, far, closed, cut=cut)
+                    return Opening(near, far, closed, cut=cut, x_m=x_m)
                 row = top - 1
             else:
                 row -= 1
@@ -220,7 +223,7 @@ class JunctionDetector:
             a, b = sorted((edge + sgn * p.strip_m[0], edge + sgn * p.strip_m[1]))
             strip = mask[:, self._col(a):self._col(b) + 1] > 0
             seen = self.visible[:, self._col(a):self._col(b) + 1].mean(axis=1) > 0.8
-            out[side] = self._runs(strip.mean(axis=1), seen, self.edge_paint(response, line))
+            out[side] = self._runs(strip.mean(axis=1), seen, self.edge_paint(response, line), 0.5 * (a + b))
         straight = None
         opening = out["right"] or out["left"]
         if opening is not None and opening.closed:
@@ -280,9 +283,9 @@ def view_from_scan(scan, params: ScanJunctionParams | None = None) -> JunctionVi
         if o is None:
             sides[side] = None
             continue
-        near, far, resumed, dead = o
+        near, far, resumed, dead, x = o
         closed = resumed or (both and ends and scan.y[-1] - far <= p.resume_m)
-        sides[side] = Opening(near, far, bool(closed), dead)  # dead: True / False / None (cannot tell)
+        sides[side] = Opening(near, far, bool(closed), dead, x_m=x)  # dead: True / False / None (cannot tell)
     straight = dead_ahead = None
     opened = [o for o in sides.values() if o is not None]
     if opened:
@@ -366,7 +369,8 @@ def _road_ends(scan, far_m: float, p: ScanJunctionParams) -> bool | None:
 
 def _opening(scan, rows: np.ndarray, beyond: np.ndarray, view: np.ndarray, ok: np.ndarray,
              p: ScanJunctionParams, sgn: float):
-    """(near, far, resumed, dead) of the nearest group of open rows long enough, or None."""
+    """(near, far, resumed, dead, x) of the nearest group of open rows long enough, or None; x:
+    where its rows open, just past the edge they interrupt (car frame)."""
     if len(rows) == 0:
         return None
     step = float(np.median(np.abs(np.diff(scan.y)))) if len(scan.y) > 1 else 0.125
@@ -388,7 +392,8 @@ def _opening(scan, rows: np.ndarray, beyond: np.ndarray, view: np.ndarray, ok: n
         if line is not None:
             i = group[-1] + 1 + after[0]
             resumed = abs(float(edge[i] - np.polyval(line, scan.y[i]))) < p.in_line_m
-    return near, far, resumed, _dead_end(scan, group, beyond, view, p, sgn)
+    x = float((scan.edge_r if sgn > 0 else scan.edge_l)[group[0]]) + sgn * p.min_gap_m
+    return near, far, resumed, _dead_end(scan, group, beyond, view, p, sgn), x
 
 
 def _dead_end(scan, group: np.ndarray, beyond: np.ndarray, view: np.ndarray, p: ScanJunctionParams,
