@@ -7,7 +7,7 @@ import pytest
 
 from signlane import lanes
 from track_helpers import track_with_stop_sign
-from signlane.behaviour import Behaviour, _junction_path, BehaviourParams
+from signlane.behaviour import Behaviour, _junction_path, _rotate, BehaviourParams
 from signlane.camera import via_camera
 from signlane.config import Config
 from signlane.control import PurePursuit, path_bend_towards
@@ -299,6 +299,66 @@ def test_out_of_a_kerbed_turn_the_exit_roads_lane_takes_over_from_the_planned_ta
 
     assert turned(lane) == "cruise"
     assert turned(lost) == "junction-left"  # nothing to hand over to: the tail leads on
+
+
+def _straight_lane(width: float = 4.0, heading: float = 0.0) -> LaneEstimate:
+    ys = np.arange(3.5, 12.0, 0.5)
+    return LaneEstimate("test", True, heading=heading, lane_width_m=width,
+                        path_m=_rotate(np.column_stack([np.zeros_like(ys), ys]), heading))
+
+
+def test_a_junction_met_askew_is_measured_along_the_road():
+    # Out of a bend the car meets a junction askew (via_town's curved street: 20 degrees): the
+    # side road's edges it sees at 3 m to its right lie further ahead of it than along the road,
+    # and a right turn planned from them started late and left the road. A kerbed road runs
+    # north along x = 0; its side road to the right spans y 18-22; the car, on the road's middle
+    # at y = 12, points 0.25 rad right of the road.
+    theta, x_m = 0.25, 3.0
+    pose = OdoPose(0.0, 12.0, math.pi / 2 - theta)
+    fy, ry = math.sin(pose.heading), -math.cos(pose.heading)
+    near, far = ((edge - pose.y - x_m * ry) / fy for edge in (18.0, 22.0))  # where x_m crosses each edge
+    assert (near + far) / 2 - 20.0 + 12.0 > 0.9  # askew, its middle looks 1 m further on than it is
+    b = Behaviour()
+    for i in range(3):  # a lone opening with the road ending ahead: a forced right
+        view = JunctionView(None, Opening(near, far, True, dead=False, x_m=x_m), False, straight_dead=True)
+        state = b.step(0.1 * i, pose, 0.0, 3.0, _straight_lane(heading=theta), view, two_lane=False)[2]
+    assert state == "junction-right"
+    tail = b.path[-20:]  # the straight run out of the arc, odometry frame
+    assert np.all(tail[:, 0] > 4.0) and np.abs(tail[:, 1] - 20.0).max() < 0.15  # along the side road's middle
+    assert b.decisions[-1]["near_m"] == pytest.approx(6.0, abs=0.1)  # the near edge 6 m on along the road
+
+
+def test_a_turn_sign_standing_past_a_crossing_driven_straight_over_is_for_the_next_junction():
+    # Two junctions a few metres apart (via_town): the second's `left` sign stands 3.3 m past the
+    # first's far side, and the car sees it last before the first. Passing a junction retires the
+    # turn signs seen before it (they were for it), so the second was planned with no sign.
+    b = Behaviour()
+    b.observe_signs([("left", np.array([-3.0, 17.3]))])  # beyond the first's far side (14 m) and its slack
+    for i in range(45):
+        y = 0.5 * i
+        if y < 14.0:  # a crossroads at 10-14 m, no sign of its own: straight on
+            view = JunctionView(Opening(10.0 - y, 14.0 - y, True, dead=False),
+                                Opening(10.0 - y, 14.0 - y, True, dead=False), True, straight_dead=False)
+        else:  # a side road to the left at 22-26 m
+            view = JunctionView(Opening(22.0 - y, 26.0 - y, True, dead=False), None, True, straight_dead=False)
+        b.step(0.1 * i, OdoPose(0.0, y), y, 3.0, _straight_lane(), view, two_lane=False)
+    assert [(d["sign"], d["turn"]) for d in b.decisions] == [(None, "straight"), ("left", "left")]
+
+
+def test_a_bends_look_of_a_road_ending_does_not_make_the_next_junctions_road_on_a_dead_end():
+    # Out of a left bend (via_town's top-right corner) the junction view read a lone left opening
+    # with the road ending ahead, three frames running: the bend itself. Those verdicts outvoted
+    # the crossing just past it, whose road goes on, and the car was sent into its dead-end stub.
+    ys = np.arange(3.5, 12.0, 0.5)
+    bending = LaneEstimate("test", True, curvature=-1 / 13, lane_width_m=4.0,
+                           path_m=np.column_stack([-ys ** 2 / 26.0, ys]))
+    b = Behaviour()
+    for i in range(3):
+        view = JunctionView(Opening(12.0, 15.0, True, dead=None), None, False, straight_dead=True)
+        b.step(0.1 * i, OdoPose(0.0, 0.2 * i), 0.2 * i, 3.0, bending, view, two_lane=False)
+    crossing = JunctionView(None, Opening(4.0, 8.0, True, dead=None), True, straight_dead=False)
+    b.step(1.0, OdoPose(0.0, 3.0), 3.0, 3.0, _straight_lane(), crossing, two_lane=False)
+    assert b.decisions and b.decisions[-1]["exits"] == ["right", "straight"]
 
 
 def _junction_centre_ahead(route: Route, leg) -> float:

@@ -307,13 +307,25 @@ def _place_signs(rng: np.random.Generator, data: dict, prob: float) -> list[dict
                 label = options[int(rng.integers(len(options)))]
                 back, beside = float(rng.uniform(1.0, 6.0)), float(rng.uniform(1.6, 4.5))
                 if _straight_before(track, tile, entry) >= back + sign_sight_m(beside):
-                    signs.append(_sign_before(track, tile, entry, label, back, beside))
+                    _add_apart(signs, _sign_before(track, tile, entry, label, back, beside))
         elif tile.tile_id == 0 and rng.random() < 0.03:
             entry = tile.ports[int(rng.integers(2))]
             beside = float(rng.uniform(1.6, 4.5))
             if _straight_before(track, tile, entry) >= sign_sight_m(beside) and not _near_start(track, tile):
-                signs.append(_sign_before(track, tile, entry, "stop", 0.0, beside))
+                _add_apart(signs, _sign_before(track, tile, entry, "stop", 0.0, beside))
     return signs
+
+
+SIGN_APART_M = 1.5  # a sign's face is 1.25 m across: two closer than this stand in one another
+
+
+def _add_apart(signs: list[dict], sign: dict) -> None:
+    """Add a sign unless one already placed stands in its way (a plain road's stop sign placed
+    where a junction's turn sign is: seed 17's stop stood 0.3 m behind a no_right, hidden from
+    every camera)."""
+    x, y = sign["pos"]["x"] * VIA_M, sign["pos"]["y"] * VIA_M
+    if all(math.hypot(x - o["pos"]["x"] * VIA_M, y - o["pos"]["y"] * VIA_M) >= SIGN_APART_M for o in signs):
+        signs.append(sign)
 
 
 def _near_start(track, tile, cells: int = 7) -> bool:
