@@ -242,10 +242,13 @@ class Behaviour:
         exits = {name for name in sides if not self._dead.get(name)}
         if j.straight and not self._dead.get("straight"):
             exits.add("straight")
-        if not exits:  # every way judged dead contradicts the openings seen: take the least dead
+        if not exits:  # every way judged dead contradicts the openings seen: take the least dead,
+            # the smallest share of dead verdicts, then the fewest (a T's long arm seen askew, the
+            # car still turning out of a bend, reads dead on a few frames; its stub on every one)
             ways = list(sides) + (["straight"] if j.straight else [])
-            share = {w: self._votes.get(w, [0, 0])[0] / max(sum(self._votes.get(w, [0, 0])), 1) for w in ways}
-            exits = {w for w in ways if share[w] == min(share.values())}
+            votes = {w: self._votes.get(w, [0, 0]) for w in ways}
+            dead = {w: (v[0] / max(sum(v), 1), v[0]) for w, v in votes.items()}
+            exits = {w for w in ways if dead[w] == min(dead.values())}
         if len(exits) >= 2 or (exits and (len(sides) == 2 or self._dead.get("straight"))):
             return exits  # (one exit: the road on is a dead end, so the turn is forced)
         return None

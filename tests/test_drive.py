@@ -279,6 +279,20 @@ def test_a_turn_taken_as_the_least_dead_way_is_not_planned_again_every_frame():
     assert [d["turn"] for d in b.decisions] == ["right", "right"] and state == "junction-right"
 
 
+def test_of_two_arms_judged_dead_on_every_frame_the_one_judged_so_less_often_is_taken():
+    # A T reached along its stem with the car askew out of a bend (the pilot on VIA seed 106):
+    # its stub read dead on 8 frames, its long arm, mostly beyond the view, on 2. Both wholly
+    # dead, they tied and the stub (right before left) was taken, into its end.
+    b = Behaviour()
+    for i in range(8):
+        n = 12.0 - 0.25 * i
+        view = JunctionView(Opening(n, n + 4.0, True, dead=True if i in (2, 5) else None),
+                            Opening(n, n + 4.0, True, dead=True), False, straight_dead=True)
+        state = b.step(0.05 * i, OdoPose(0.0, 0.25 * i), 0.25 * i, 3.0, _straight_lane(), view, two_lane=False)[2]
+    assert b._votes["left"] == [2, 0] and b._votes["right"] == [8, 0]
+    assert state == "junction-left" and b.decisions[-1]["exits"] == ["left"]
+
+
 def test_out_of_a_kerbed_turn_the_exit_roads_lane_takes_over_from_the_planned_tail():
     # The planned turn's straight tail ran on 12 m out of its arc: one tile on, the exit road
     # shifted sideways (a lane shift) and the car, still on its tail, touched the kerb. Past
