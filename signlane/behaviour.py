@@ -350,14 +350,6 @@ class Behaviour:
         if exits is None:
             return False
         side = [o for o in (j.right, j.left) if o is not None and o.closed]
-        # the path is laid along the road, not along the car (heading > 0: the car points right
-        # of it): the road's direction over the last metres, else this frame's lane. Out of a
-        # bend the car meets the junction askew, and the side road's corners it sees ahead lie at
-        # other distances along the road (via_town, the curved street's end: 20 degrees askew,
-        # the crossing's middle seen 0.6 m further than it is, and the right turn made late)
-        heading = self.road_heading.car_heading(odo_m, pose.heading)
-        heading = heading if heading is not None else (lane.heading if lane.found else None)
-        side = [_along_road(o, heading) for o in side]
         near = min(o.near_m for o in side)
         # (VIA's camera shows a painted road's left side from about 12 m on: an opening there
         # begins at the view's edge, its near end unseen, and is as close as it can be seen)
@@ -367,6 +359,16 @@ class Behaviour:
             return False  # still turning out of a bend (or a lane shift): what it sees of the junction is askew
         if len(exits) == 1 and len(side) == 1 and self._bends_towards(lane, next(iter(exits))):
             return False
+        # the path is laid along the road, not along the car (heading > 0: the car points right
+        # of it): the road's direction over the last metres, else this frame's lane. Out of a
+        # bend the car meets the junction askew, and the side road's ends it sees ahead lie at
+        # other distances along the road (via_town, the curved street's end: 20 degrees askew,
+        # the crossing's middle seen 0.6 m further on than it is, and the right turn made late).
+        # When to plan stays judged on what the car sees: a frame whose lane heading is misread
+        # would otherwise move a far junction near enough to plan
+        heading = self.road_heading.car_heading(odo_m, pose.heading)
+        heading = heading if heading is not None else (lane.heading if lane.found else None)
+        side = [_along_road(o, heading) for o in side]
         y_c = float(np.mean([o.centre_m for o in side]))
         far = max(o.far_m for o in side)
         sign = self._instruction(pose, far)
