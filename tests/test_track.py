@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from signlane.world.maps import bundled_map
-from signlane.world.procedural import SIGN_APART_M, generate_map
+from signlane.world.procedural import SIGN_APART_M, VIA_M, generate_map
 from signlane.world.route import Route, random_policy
 from signlane.world.scene import build_scene
 from signlane.world.topdown import road_mask
@@ -490,14 +490,14 @@ def test_procedural_signs_never_stand_in_one_another():
     # from every camera, it was a stop no driver could make
     close = []
     for seed in range(120):
-        pos = [(s["pos"]["x"] * 4.0, s["pos"]["y"] * 4.0) for s in generate_map(seed)["sign_obj_datas"]]
+        pos = [(s["pos"]["x"] * VIA_M, s["pos"]["y"] * VIA_M) for s in generate_map(seed)["sign_obj_datas"]]
         close += [(seed, a, b) for i, a in enumerate(pos) for b in pos[i + 1:] if math.dist(a, b) < SIGN_APART_M]
     assert close == []
 
 
 def test_procedural_maps_do_not_depend_on_the_process_hash_seed():
     """String hashing differs per process; maps must not (datasets are built by worker processes)."""
-    code = ("import json; from signlane.world.procedural import SIGN_APART_M, generate_map; "
+    code = ("import json; from signlane.world.procedural import generate_map; "
             "print(json.dumps([generate_map(s) for s in range(12)]))")
     outs = {subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
                            env={**os.environ, "PYTHONHASHSEED": str(h)}).stdout for h in (1, 2, 3)}
