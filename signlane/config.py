@@ -101,6 +101,10 @@ class DriveConfig:
     coast_decel: float = 0.4
     wheelbase_m: float = VIA_WHEELBASE_M  # VIA's car; for odometry and path following
     sign_size_m: float = 1.25  # sign face height, for the distance to a sign (VIA's: 1.25 m)
+    sign_height_m: float = 2.42  # the face's centre above the road (VIA's: 2.42 m)
+    # the sign search looks only at the image rows where a face at least this far ahead can be
+    # (signs/face_rows.py): the road and ground below them and the sky above hold none (0 = every row)
+    sign_search_near_m: float = 4.0
     # a square face seen at angle a is cos(a) as wide as tall: narrower than this, it faces
     # another road's traffic (0.55: more than about 57 degrees away)
     sign_min_aspect: float = 0.55
@@ -303,6 +307,8 @@ RANGES: dict[str, Range] = {
     "drive.coast_decel": Range(0.01, 100.0, "m/s^2"),
     "drive.wheelbase_m": Range(0.05, 20.0, "m"),
     "drive.sign_size_m": Range(0.05, 10.0, "m"),
+    "drive.sign_height_m": Range(0.0, 20.0, "m"),
+    "drive.sign_search_near_m": Range(0.5, 1000.0, "m", off=0),
     "drive.sign_min_aspect": Range(0.0, 1.0, ""),
     "drive.sign_max_lateral_m": Range(0.5, 100.0, "m"),
     "drive.lanes_width": Range(32, 8192, "px", off=0),

@@ -58,7 +58,7 @@ def _run(stage, frames, monkeypatch):
     from signlane.signs import proposals as prop_module
     out = []
     for props in frames:
-        monkeypatch.setattr(prop_module, "propose", lambda img, params, half=None, p=props: list(p))
+        monkeypatch.setattr(prop_module, "propose", lambda img, params, half=None, rows=None, p=props: list(p))
         found, _ = stage.step(_frame([(p.box[0], p.color) for p in props]))
         out.append([d.label for d in found])
     return out

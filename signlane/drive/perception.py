@@ -18,6 +18,7 @@ from signlane.config import CameraConfig, Config
 from signlane.drive.signs import SignWorker, stage_failure
 from signlane.junction import JunctionDetector, view_from_scan, with_road_end
 from signlane.lanes.auto import road_state
+from signlane.signs.face_rows import RowBand, face_rows
 from signlane.types import LaneEstimate, SignDetection
 
 
@@ -26,11 +27,15 @@ class PerceptionStack:
     sync_signs False runs the sign stage in a worker thread on the newest frame (real time)."""
 
     def __init__(self, config: Config, lanes_width: int = 0, sync_signs: bool = True, junctions: bool = True,
-                 after_answer: bool = False):
+                 after_answer: bool = False, sign_rows: bool = False):
         """after_answer: the caller calls answered() once each frame's command is out (a driver):
         the lane method may then put work off until then that only later frames read (auto's
-        `edges_after_answer`); off, each frame's outputs are all its own (infer)."""
+        `edges_after_answer`); off, each frame's outputs are all its own (infer).
+        sign_rows: the frames come from the configured camera on a car, so signs are searched
+        only in the rows where their faces can stand (config.drive.sign_search_near_m,
+        signs/face_rows.py); off for photos and footage from any camera (infer)."""
         self.config = config
+        self.sign_rows = sign_rows
         self.after_answer = after_answer
         self.lanes_width = lanes_width
         self.with_junctions = junctions
@@ -62,6 +67,12 @@ class PerceptionStack:
         if self.after_answer and hasattr(self.lane.params, "edges_after_answer"):
             self.lane.params = replace(self.lane.params, edges_after_answer=True)
         self.junctions = JunctionDetector(self.small_camera) if self.with_junctions else None
+        if self.signs is not None and self.sign_rows:
+            dc = cfg.drive
+            rows = face_rows(self.camera, dc.sign_search_near_m, dc.sign_height_m - dc.sign_size_m / 2,
+                             dc.sign_height_m + dc.sign_size_m / 2)
+            # the band is checked by the stage (RowBand) and used only with a classifier to check it
+            self.signs.band = None if rows is None else RowBand((width, height), rows)
         self._size = (width, height)
 
     def use_camera(self, camera: CameraConfig) -> None:

@@ -55,7 +55,7 @@ class DriveStack:
         self.config = config or Config()
         dc = self.config.drive
         self.sync_signs = sync_signs
-        self.perception = PerceptionStack(self.config, dc.lanes_width, sync_signs, after_answer=True)
+        self.perception = PerceptionStack(self.config, dc.lanes_width, sync_signs, after_answer=True, sign_rows=True)
         from signlane.pilot import PilotSteering, from_config
         model = from_config(self.config.pilot)
         self.pilot = PilotSteering(model, self.config.pilot.junctions) if model is not None else None

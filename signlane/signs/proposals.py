@@ -105,18 +105,22 @@ def _hue_mask(hsv: np.ndarray, hues: tuple[HueRange, ...], s_min: int, v_min: in
     return mask
 
 
-def _scales(img: np.ndarray, params: ProposalParams, small_hsv: np.ndarray | None = None) -> tuple[float, float]:
+def _scales(img: np.ndarray, params: ProposalParams, small_hsv: np.ndarray | None = None,
+            sparse_hsv: np.ndarray | None = None) -> tuple[float, float]:
     """(S, V) threshold factors <= 1 from sparse percentiles of the frame: a dark frame lowers
     V minimums, a washed-out one (over-exposure, glare, haze: little saturation anywhere) lowers
     the first S level. Percentiles, so that one bright sky or one vivid wall does not decide.
     They are read off the half-size copy's HSV (`small_hsv`, made from img when not given),
     which the region search has anyway: its 2x2 averages smooth noise as the full frame's blur
-    does, and every search variant then adapts to the same numbers."""
+    does, and every search variant then adapts to the same numbers. `sparse_hsv`: that sample
+    (every SPARSE-th row and column of the half-size copy, in HSV) when the caller has only it."""
     if not params.adaptive or img.size == 0:
         return 1.0, 1.0
-    if small_hsv is None:
-        small_hsv = cv2.cvtColor(_half(img), cv2.COLOR_BGR2HSV)
-    sparse = small_hsv[::SPARSE, ::SPARSE].reshape(-1, 3)
+    if sparse_hsv is None:
+        if small_hsv is None:
+            small_hsv = cv2.cvtColor(_half(img), cv2.COLOR_BGR2HSV)
+        sparse_hsv = small_hsv[::SPARSE, ::SPARSE]
+    sparse = sparse_hsv.reshape(-1, 3)
     s95, v90 = planes.percentile_u8(sparse[:, 1], 95), planes.percentile_u8(sparse[:, 2], 90)
     return float(np.clip(s95 / params.washed_s, 0.5, 1.0)), float(np.clip(v90 / 200.0, 0.35, 1.0))
 
@@ -486,11 +490,15 @@ def _color_of(red: np.ndarray, blue: np.ndarray, box: tuple[int, int, int, int])
     return "blue" if cv2.countNonZero(blue[y:y + h, x:x + w]) > n_red else "red"
 
 
-def propose(image_bgr: np.ndarray, params: ProposalParams | None = None, half: np.ndarray | None = None
-            ) -> list[SignDetection]:
+def propose(image_bgr: np.ndarray, params: ProposalParams | None = None, half: np.ndarray | None = None,
+            rows: tuple[int, int] | None = None) -> list[SignDetection]:
     """Sign proposals in a uint8 ``(H, W, 3)`` BGR image (a 2-D grey image is accepted).
     `half`: the image already scaled to (W // 2, H // 2) with INTER_AREA, if the caller has it
     (the driver's lane copy): the region search then need not make it.
+    `rows`: (top, bottom) image rows where signs can be (a driving camera's band around the
+    horizon, signs/face_rows.py); the region search (the robust default) then looks for where
+    signs may be in those rows only, and a blob they cut is no candidate. The frame's thresholds
+    still come from the whole frame, so a sign inside the rows gets the same box as without them.
 
     Returns :class:`SignDetection`\\ s with label ``"unknown"``, ``color`` ``"red"`` or ``"blue"``,
     ``score`` in [0, 1] (shape confidence; 1.0 when shape scoring is off) and ``box`` (x, y, w, h)
@@ -502,7 +510,8 @@ def propose(image_bgr: np.ndarray, params: ProposalParams | None = None, half: n
     if H == 0 or W == 0:
         return []
     if params.separate_colors and params.regions:
-        blobs = _search_regions(img, params, half if half is not None and half.shape == (H // 2, W // 2, 3) else None)
+        blobs = _search_regions(img, params, half if half is not None and half.shape == (H // 2, W // 2, 3) else None,
+                                rows)
     elif params.separate_colors:
         scales = _scales(img, params)
         blobs = _search_frame(_hsv(img, params), params, scales, _color_specs(params, scales))
@@ -522,11 +531,17 @@ def propose(image_bgr: np.ndarray, params: ProposalParams | None = None, half: n
     return [SignDetection("unknown", round(b.score, 4), _pad(b.box, params.pad_frac, W, H), b.color) for b in kept]
 
 
-def _search_frame(hsv: np.ndarray, params: ProposalParams, scales: tuple[float, float], specs) -> list[_Blob]:
-    """The robust search of both colours (specs) in the whole HSV frame."""
-    H, W = hsv.shape[:2]
-    ctx = _make_ctx(W, H, params, scales[1])
-    return _search_windows([planes.window(hsv, (0, 0, W, H), specs, _chroma_floor(ctx))], ctx, specs, whole=True)
+def _search_frame(hsv: np.ndarray, params: ProposalParams, scales: tuple[float, float], specs,
+                  frame_h: int = 0, top: int = 0) -> list[_Blob]:
+    """The robust search of both colours (specs) in the whole HSV frame, or in the band of its
+    rows from `top` that `hsv` holds of a frame frame_h rows high. A blob the band cuts is no
+    candidate, as one a window cuts (a tall wall or tree cut to a sign-sized piece was one), but
+    is searched inside as any other."""
+    h, W = hsv.shape[:2]
+    frame_h = frame_h or h
+    ctx = _make_ctx(W, frame_h, params, scales[1])
+    return _search_windows([planes.window(hsv, (0, top, W, top + h), specs, _chroma_floor(ctx))], ctx, specs,
+                           whole=(top, h) == (0, frame_h))
 
 
 def _search_windows(wins: list[planes.Window], ctx: _Ctx, specs, whole: bool) -> list[_Blob]:
@@ -559,27 +574,39 @@ def _coarse_candidates(blobs: list[_Blob], min_score: float) -> list[_Blob]:
     return [b for b in blobs if min(b.box[2], b.box[3]) < COARSE_BIG or b.score >= min_score]
 
 
-def _search_regions(img: np.ndarray, params: ProposalParams, small: np.ndarray | None) -> list[_Blob]:
+def _search_regions(img: np.ndarray, params: ProposalParams, small: np.ndarray | None,
+                    rows: tuple[int, int] | None = None) -> list[_Blob]:
     """Coarse to fine: the robust search on a half-size copy (area-averaged, which also does the
     blur's work) finds where signs may be; the full-resolution search then runs in a window
     around each (signs/roi.py makes blurred HSV for the windows only) and gives the boxes. The
     frame's thresholds come from a sparse sample of the half-size copy, for both.
     A colour is searched at full resolution only around its own coarse blobs: a blue window
     (often sky or a wall around a blue candidate) searched for red too cost time and found
-    mostly clutter (a red sign there has its own coarse blob and window)."""
+    mostly clutter (a red sign there has its own coarse blob and window).
+    With `rows` (see propose) the half-size search converts and searches those rows only."""
     H, W = img.shape[:2]
-    small_hsv = cv2.cvtColor(_half(img) if small is None else small, cv2.COLOR_BGR2HSV)
-    scales = _scales(img, params, small_hsv)
+    small = _half(img) if small is None else small
+    h = small.shape[0]
+    top, bottom = (0, h) if rows is None else (max(0, rows[0] * h // H), min(h, -(-rows[1] * h // H)))
+    if bottom <= top:
+        return []
+    if (top, bottom) == (0, h):
+        band_hsv = cv2.cvtColor(small, cv2.COLOR_BGR2HSV)
+        scales = _scales(img, params, band_hsv)
+    else:  # the thresholds from the whole frame's sample, as without rows (HSV is per pixel)
+        band_hsv = cv2.cvtColor(small[top:bottom], cv2.COLOR_BGR2HSV)
+        scales = _scales(img, params, sparse_hsv=cv2.cvtColor(np.ascontiguousarray(small[::SPARSE, ::SPARSE]),
+                                                                 cv2.COLOR_BGR2HSV))
     specs = _color_specs(params, scales)
     loose = _coarse_params(params)
     # the coarse pass also keeps paler blobs: averaging 2x2 pixels halves a thin ring's saturation
     # against a white face
     pale = [(c, hues, int(COARSE_S * s_min), v_min) for c, hues, s_min, v_min in specs]
-    coarse = _coarse_candidates(_search_frame(small_hsv, loose, scales, pale), params.min_score)
+    coarse = _coarse_candidates(_search_frame(band_hsv, loose, scales, pale, h, top), params.min_score)
     if not coarse:
         return []
     ctx = _make_ctx(W, H, params, scales[1])
-    scale = (W / small_hsv.shape[1], H / small_hsv.shape[0])
+    scale = (W / small.shape[1], H / h)
     blobs: list[_Blob] = []
     for spec in specs:  # each colour only around what the half-size search found of that colour
         boxes = sign_roi.windows([b.box for b in coarse if b.color == spec[0]], scale, (W, H), ctx.min_size)

@@ -12,6 +12,7 @@ from signlane.config import SignsConfig
 from signlane.signs import proposals
 from signlane.signs.classifier import DEFAULT_MODEL, SignClassifier
 from signlane.signs.confirm import SignConfirmer
+from signlane.signs.face_rows import RowBand
 from signlane.signs.not_signs import NotSigns
 from signlane.types import SignDetection
 
@@ -28,16 +29,23 @@ class SignStage:
         self.not_signs = NotSigns()
         self.confirmed: list[SignDetection] = []
         self.last_ms: dict[str, float] = {}
+        # the rows searched (the drive stack sets them from its camera: signs/face_rows.py);
+        # None: every row
+        self.band: RowBand | None = None
 
     def step(self, image_bgr, half=None) -> tuple[tuple[SignDetection, ...], list[SignDetection]]:
         """`half`: the frame at half size (INTER_AREA), if the caller has made it (see propose)."""
         t0 = time.perf_counter()
-        found = proposals.propose(image_bgr, self.params, half)
+        band, size = self.band, image_bgr.shape[1::-1]
+        rows = band.rows_for(size) if band is not None and self.classifier is not None else None
+        found = proposals.propose(image_bgr, self.params, half, rows)
         t1 = time.perf_counter()
         if self.classifier is not None:
             # what the classifier was sure is no sign on the frames just before is not classified again
             found = self.classifier.label_detections(image_bgr, self.not_signs.split(found), self.config.min_score,
                                                      self.not_signs.learn)
+            if band is not None:
+                band.check(size, rows, found)
         self.confirmed = self.confirmer.step(found)
         # what this frame's two parts cost (ms), for the driver's timing and the benchmarks
         self.last_ms = {"proposals": (t1 - t0) * 1e3, "classifier": (time.perf_counter() - t1) * 1e3}
