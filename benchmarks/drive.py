@@ -39,6 +39,7 @@ import numpy as np
 from websockets.sync.client import connect
 
 from signlane import lanes
+from signlane.camera import via_camera
 from signlane.config import Config
 from signlane.sim.protocol import encode_jpeg, encode_telemetry
 from signlane.types import Command, LaneEstimate, Perception
@@ -276,8 +277,8 @@ def main() -> None:
     ap.add_argument("--style", choices=["painted", "via", "mixed"], default="painted",
                     help="the drive's road (default painted; with random looks it may have no centre line)")
     ap.add_argument("--looks", choices=["random", "default"], default="random",
-                    help="randomised looks and cameras (default) or the style's own (a painted road then has its "
-                         "dashed centre line)")
+                    help="randomised looks (default) or the style's own (a painted road then has its dashed "
+                         "centre line); the camera is VIA's either way, the one the drive server is configured for")
     ap.add_argument("--viewers", type=int, default=0,
                     help="also compare lockstep answer latency with this many monitor viewers attached (default 0)")
     ap.add_argument("--viewer-frames", type=int, default=300,
@@ -285,6 +286,7 @@ def main() -> None:
     args = ap.parse_args()
     sampler = DriveSampler(args.seed, SamplerConfig(640, 480, effects="normal", style=args.style,
                                                     randomise=args.looks == "random"))
+    sampler.camera = via_camera(640, 480)  # VIA's, as the server's default config assumes
     messages = [encode_telemetry(0.0, 0.5, 8.0, encode_jpeg(sampler.sample(i).image), time=i / 30)
                 for i in range(args.frames)]
     kb = np.mean([len(m) for m in messages]) / 1024
