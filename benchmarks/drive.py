@@ -285,8 +285,8 @@ def main() -> None:
                     help="frames per run of the viewer comparison (the messages cycled; default 300)")
     args = ap.parse_args()
     sampler = DriveSampler(args.seed, SamplerConfig(640, 480, effects="normal", style=args.style,
-                                                    randomise=args.looks == "random"))
-    sampler.camera = via_camera(640, 480)  # VIA's, as the server's default config assumes
+                                                    randomise=args.looks == "random"),
+                           camera=via_camera(640, 480))  # VIA's, as the server's default config assumes
     messages = [encode_telemetry(0.0, 0.5, 8.0, encode_jpeg(sampler.sample(i).image), time=i / 30)
                 for i in range(args.frames)]
     kb = np.mean([len(m) for m in messages]) / 1024

@@ -51,8 +51,8 @@ STAGES = ["decode", "lanes", "junction", "proposals", "classifier", "control"]
 def rendered_messages(style: str, n: int, seed: int) -> list[bytes]:
     """VIA messages of n consecutive frames of a drive in one style, seen by VIA's camera (the
     simulator's in both styles, and the one the drivers below are configured for)."""
-    sampler = DriveSampler(seed, SamplerConfig(width=640, height=480, style=style, effects="normal"), fps=30.0)
-    sampler.camera = via_camera(640, 480)
+    sampler = DriveSampler(seed, SamplerConfig(width=640, height=480, style=style, effects="normal"), fps=30.0,
+                           camera=via_camera(640, 480))
     return [encode_telemetry(0.0, 0.5, 5.0, encode_jpeg(sampler.sample(i).image)) for i in range(n)]
 
 

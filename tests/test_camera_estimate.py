@@ -25,8 +25,7 @@ CAMERAS = [Camera(640, 360, 70.0, 1.1, 4.0), Camera(320, 240, 100.0, 2.2, 18.0),
 def drive(camera: Camera, style: str = "painted", effects: str = "normal", seed: int = 2, n: int = 16):
     """A recorded drive (consecutive frames) seen through `camera`."""
     d = DriveSampler(seed, SamplerConfig(camera.width, camera.height, effects=effects, randomise=False, style=style),
-                     fps=5)
-    d.camera = camera
+                     fps=5, camera=camera)
     return [d.sample(i).image for i in range(0, 2 * n, 2)]
 
 
@@ -81,8 +80,7 @@ def test_setting_what_the_user_measured_turns_the_estimate_off():
 def test_infer_reads_another_cameras_frames_right_without_being_told(tmp_path, capsys):
     # (CAMERAS[1] puts its horizon on row 76 of 240 as VIA's camera does: it would be taken for it)
     cam = replace(CAMERAS[0], height_m=1.6)
-    d = DriveSampler(5, SamplerConfig(cam.width, cam.height, effects="clean", randomise=False), fps=5)
-    d.camera = cam
+    d = DriveSampler(5, SamplerConfig(cam.width, cam.height, effects="clean", randomise=False), fps=5, camera=cam)
     samples = [d.sample(i) for i in range(0, 24, 3)]
     path = tmp_path / "drive.mp4"
     w = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), 5, (cam.width, cam.height))

@@ -1,7 +1,7 @@
 """The drive stack's sign search on the rows where sign faces can stand (signs/face_rows.py):
-every sign a driving camera sees whole lies in them, on our tracks and on VIA's own maps; a
-sign in them keeps its box; and a camera setting that does not match the frames gives the
-band up instead of hiding the signs."""
+every sign a driving camera sees whole lies in them, on procedural tracks and on a map in VIA's
+format (via_town); a sign in them keeps its box; and a camera setting that does not match the
+frames gives the band up instead of hiding the signs."""
 from __future__ import annotations
 
 import logging
@@ -26,8 +26,8 @@ LOW, HIGH = SIGN_HEIGHT_M - SIGN_FACE_M / 2, SIGN_HEIGHT_M + SIGN_FACE_M / 2
 def _whole_signs(track, style: str, camera: Camera, frames: int = 200, seed: int = 0):
     """Boxes (x, y, w, h) of the signs seen whole and unhidden along a drive of the track."""
     sampler = DriveSampler(seed, SamplerConfig(width=camera.width, height=camera.height, style=style,
-                                               effects="clean", randomise=False), fps=20.0, track=track)
-    sampler.camera = camera
+                                               effects="clean", randomise=False), fps=20.0, track=track,
+                           camera=camera)
     for i in range(0, 3 * frames, 3):
         for s in sampler.sample(i).truth.signs:
             if s.truncated == 0 and s.occluded < 0.5 and s.box[3] >= 8:
@@ -83,8 +83,7 @@ def test_a_camera_that_does_not_match_gives_the_band_up_and_the_signs_are_found(
     track = load_track("via_town", "via", 0)
     low_camera = Camera(640, 480, hfov_deg=90.0, height_m=1.3, pitch_deg=10.0)
     sampler = DriveSampler(0, SamplerConfig(width=640, height=480, style="via", effects="clean",
-                                            randomise=False), fps=20.0, track=track)
-    sampler.camera = low_camera
+                                            randomise=False), fps=20.0, track=track, camera=low_camera)
     frames = [sampler.sample(i) for i in range(0, 600, 3)]
     frames = [f for f in frames if any(s.truncated == 0 and s.box[3] >= 16 for s in f.truth.signs)]
     assert len(frames) >= 40

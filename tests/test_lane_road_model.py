@@ -164,8 +164,7 @@ def test_segnet_edges_keep_the_right_half_of_a_road_with_a_centre_line():
     right half of the carriageway, the truth's ego lane."""
     from signlane.camera import Camera
     from signlane.world.sampling import DriveSampler
-    d = DriveSampler(3, SamplerConfig(320, 240, effects="clean", randomise=False), fps=10)
-    d.camera = Camera(320, 240)
+    d = DriveSampler(3, SamplerConfig(320, 240, effects="clean", randomise=False), fps=10, camera=Camera(320, 240))
     state, errors = RoadEdgesState(), []
     for i in range(12):
         smp = d.sample(i)

@@ -195,10 +195,12 @@ def signs_along(route: Route, objects) -> np.ndarray:
 
 class DriveSampler:
     """Consecutive frames along one track at a fixed speed (a recorded drive). The track is a
-    seeded procedural one unless given; at junctions the route picks exits at random."""
+    seeded procedural one unless given; at junctions the route picks exits at random. The camera
+    is the style's own (VIA's on a kerbed road, a 1.3 m one on a painted road) unless given: the
+    simulator and the driver's default config see both styles through VIA's."""
 
     def __init__(self, seed: int, config: SamplerConfig | None = None, speed_mps: float = 8.0, fps: float = 20.0,
-                 track: Track | None = None):
+                 track: Track | None = None, camera: Camera | None = None):
         self.config = config or SamplerConfig(effects="clean")
         rng = np.random.default_rng([int(seed), 0, 3])
         cfg = self.config
@@ -208,7 +210,9 @@ class DriveSampler:
                                    style=track_style(kind, rng, cfg.randomise))
         self.route = Route.drive(track, 5000.0, random_policy(rng))
         self.renderer = Renderer(build_scene(track, seed=int(rng.integers(1 << 31)), randomise=cfg.randomise))
-        self.camera = via_camera(cfg.width, cfg.height) if track.style.kind == "via" else Camera(cfg.width, cfg.height)
+        if camera is None:
+            camera = via_camera(cfg.width, cfg.height) if track.style.kind == "via" else Camera(cfg.width, cfg.height)
+        self.camera = camera
         self.step_m = speed_mps / fps
         self.seed = int(seed)
 
