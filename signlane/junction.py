@@ -18,6 +18,7 @@ import cv2
 import numpy as np
 
 from signlane.camera import BirdsEye, Camera
+from signlane.lanes.geometry import polyfit
 
 
 _OPEN_KERNEL = np.ones((3, 3), np.uint8)  # drops single-pixel specks of look-alike colour
@@ -327,7 +328,7 @@ def _line_before(scan, edge: np.ndarray, ok: np.ndarray, near_m: float) -> np.nd
     """The straight line (np.polyfit coefficients) an edge ran along over its rows `ok` in the
     3 m before near_m, or None with fewer than 4 of them."""
     before = ok & (scan.y < near_m) & (scan.y > near_m - 3.0)
-    return np.polyfit(scan.y[before], edge[before], 1) if before.sum() >= 4 else None
+    return polyfit(scan.y[before], edge[before], 1) if before.sum() >= 4 else None
 
 
 def _verge_colour(scan, near_m: float) -> np.ndarray | None:

@@ -101,3 +101,25 @@ def test_a_camera_that_does_not_match_gives_the_band_up_and_the_signs_are_found(
     assert stage.band.given_up and stage.band.outside == 2
     assert confirmed_at is not None
     assert "camera.* may not match" in caplog.text
+
+
+def test_a_check_frame_is_answered_from_the_band_and_checked_after_its_answer():
+    """The frame due for the whole-row check gets the band's signs like any other (its cost on
+    the steering path is the band's); settle(), called once the command is out, searches every
+    row and counts the sign the classifier reads above the band."""
+    track = load_track("via_town", "via", 0)
+    low_camera = Camera(640, 480, hfov_deg=90.0, height_m=1.3, pitch_deg=10.0)
+    sampler = DriveSampler(0, SamplerConfig(width=640, height=480, style="via", effects="clean",
+                                            randomise=False), fps=20.0, track=track, camera=low_camera)
+    rows = face_rows(via_camera(640, 480), 4.0, LOW, HIGH)
+    frame = next(f for f in (sampler.sample(i) for i in range(0, 600, 3))
+                 if any(s.truncated == 0 and s.box[1] < rows[0] - 10 and s.box[3] >= 30 for s in f.truth.signs))
+    stage = SignStage(SignsConfig())
+    stage.band = RowBand((640, 480), rows, check_every=1)
+    found, _ = stage.step(frame.image)
+    assert stage.band.due and stage.band.outside == 0  # not yet checked: the answer comes first
+    assert all(rows[0] <= d.box[1] and d.box[1] + d.box[3] <= rows[1] for d in found)
+    stage.settle()
+    assert stage.band.outside == 1
+    stage.settle()  # once per due frame
+    assert stage.band.outside == 1

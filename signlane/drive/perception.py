@@ -128,8 +128,13 @@ class PerceptionStack:
 
     def answered(self) -> None:
         """The last frame's command is out: the work put off until then (the lane method's, the
-        sign search of the frame with signs beside the lane path)."""
+        sign stage's band check, the sign search of the frame with signs beside the lane path)."""
         self.release_signs()
+        if self.signs is not None and self._worker is None:
+            try:
+                self.signs.settle()  # a band check due on the frame (signs/face_rows.py)
+            except Exception as e:
+                raise stage_failure(e) from e
         if self.lane is not None:
             self.lane.settle()
 

@@ -109,7 +109,10 @@ def run_loop(source, stack, actuator, monitor=None, smoothing: float = 1.0, fram
                 cmd = Command(smoother.step(cmd.steering), cmd.throttle, cmd.state)
                 totals.frames += 1
             actuator.step(cmd)
-            stack.answered()  # the command is out: the sign search of this frame may start
+            try:
+                stack.answered()  # the command is out: the sign search of this frame may start
+            except Exception as e:  # its work is about this frame; the next frame is driven as ever
+                log.warning("the driver's work after frame %d failed: %s", got.index, e)
             ms = (time.perf_counter() - got.arrived) * 1e3
             totals.step_ms.append(ms)
             car.told(cmd)  # what a camera cannot measure

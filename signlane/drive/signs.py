@@ -86,12 +86,12 @@ class SignWorker:
                 continue
             try:
                 found, confirmed = self.stage.step(job[0])
+                with self._lock:
+                    self._result, self._error = (found, list(confirmed), job[1]), None
+                self.stage.settle()  # the band check (signs/face_rows.py), after the result is out
             except Exception as e:  # reported to the driving thread; the next frame tries again
                 with self._lock:
                     self._error = stage_failure(e)
-                continue
-            with self._lock:
-                self._result, self._error = (found, list(confirmed), job[1]), None
 
     def close(self) -> None:
         self._stop = True

@@ -44,33 +44,44 @@ def face_rows(camera: Camera, near_m: float, low_m: float, high_m: float, margin
 class RowBand:
     """The rows the sign stage searches, checked against what it finds. The band is right only
     when the camera settings match the frames; a wrong camera would hide every sign, silently.
-    So one frame in `check_every` is searched on every row, and a sign the classifier reads
+    So one frame in `check_every` is also searched on every row, and a sign the classifier reads
     reaching outside the band on `misses` such frames means the settings do not match (with
     them, a face reaches out of the band only nearer than the band's near distance, where the
     side of the view has cut it off long before): the band is given up, with a warning, and
-    every row is searched from then on."""
+    every row is searched from then on. The frame itself is answered from the band as every
+    other frame is; the whole-row search is the check's alone, made once the frame's command is
+    out (SignStage.settle), so a check frame costs the steering path no more than any other."""
 
     def __init__(self, size: tuple[int, int], rows: tuple[int, int], check_every: int = 15, misses: int = 2):
         self.size, self.rows = size, rows
         self.check_every, self.misses = check_every, misses
         self.frames = self.outside = 0
         self.given_up = False
+        self.due = False  # the last frame given rows_for is to be checked on every row
 
     def rows_for(self, size: tuple[int, int]) -> tuple[int, int] | None:
-        """The rows to search on the next frame (of (width, height) `size`); None: every row."""
+        """The rows to search on the next frame (of (width, height) `size`); None: every row.
+        Sets `due` when that frame is also to be searched on every row for the check."""
         self.frames += 1
-        if self.given_up or size != self.size or self.frames % self.check_every == 0:
+        if self.given_up or size != self.size:
+            self.due = False
             return None
+        self.due = self.frames % self.check_every == 0
         return self.rows
 
-    def check(self, size: tuple[int, int], rows: tuple[int, int] | None, signs) -> None:
-        """After a frame searched on every row (`rows` None): its classified signs (x, y, w, h boxes)."""
-        if rows is not None or self.given_up or size != self.size:
-            return
+    def outside_band(self, box) -> bool:
+        """Does an (x, y, w, h) box reach above or below the band?"""
         top, bottom = self.rows
-        if any(d.box[1] < top or d.box[1] + d.box[3] > bottom for d in signs):
+        return box[1] < top or box[1] + box[3] > bottom
+
+    def check(self, size: tuple[int, int], signs) -> None:
+        """After a due frame's search on every row: its signs the classifier read (x, y, w, h boxes)."""
+        if self.given_up or size != self.size:
+            return
+        if any(self.outside_band(d.box) for d in signs):
             self.outside += 1
             if self.outside >= self.misses:
                 self.given_up = True
+                top, bottom = self.rows
                 log.warning("signs seen outside image rows %d-%d, where the camera settings put every sign face; "
                             "camera.* may not match this camera: searching every row from now on", top, bottom)

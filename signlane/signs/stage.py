@@ -32,26 +32,40 @@ class SignStage:
         # the rows searched (the drive stack sets them from its camera: signs/face_rows.py);
         # None: every row
         self.band: RowBand | None = None
+        self._check: object = None  # a frame whose band check waits for settle()
 
     def step(self, image_bgr, half=None) -> tuple[tuple[SignDetection, ...], list[SignDetection]]:
         """`half`: the frame at half size (INTER_AREA), if the caller has made it (see propose)."""
+        self.settle()  # a check its caller never settled (made before the frame, as it would have been)
         t0 = time.perf_counter()
         band, size = self.band, image_bgr.shape[1::-1]
         rows = band.rows_for(size) if band is not None and self.classifier is not None else None
+        if rows is not None and band.due:
+            self._check = image_bgr  # (frames are not written to after they are read)
         found = proposals.propose(image_bgr, self.params, half, rows)
         t1 = time.perf_counter()
         if self.classifier is not None:
             # what the classifier was sure is no sign on the frames just before is not classified again
             found = self.classifier.label_detections(image_bgr, self.not_signs.split(found), self.config.min_score,
                                                      self.not_signs.learn)
-            if band is not None:
-                band.check(size, rows, found)
         self.confirmed = self.confirmer.step(found)
         # what this frame's two parts cost (ms), for the driver's timing and the benchmarks
         self.last_ms = {"proposals": (t1 - t0) * 1e3, "classifier": (time.perf_counter() - t1) * 1e3}
         return tuple(found), self.confirmed
 
+    def settle(self) -> None:
+        """The band check of the last frame, when it was due (RowBand): every row searched, and
+        what the classifier reads among the candidates reaching outside the band counted. A
+        driver calls it once the frame's command is out (else the next step makes it first);
+        it changes neither that frame's signs nor the confirmation."""
+        image, self._check = self._check, None
+        if image is None or self.band is None or self.classifier is None:
+            return
+        outside = [p for p in proposals.propose(image, self.params) if self.band.outside_band(p.box)]
+        self.band.check(image.shape[1::-1], self.classifier.label_detections(image, outside, self.config.min_score))
+
     def reset(self) -> None:
+        self._check = None
         self.not_signs.reset()
         self.confirmer.reset()
         self.confirmed = []
