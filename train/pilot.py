@@ -22,7 +22,7 @@ log = logging.getLogger(__name__)
 
 # S3's recipe for PilotNet; ours trains with a higher rate (batch norm) and a larger batch
 DEFAULTS = {"pilotnet": {"lr": 1e-4, "batch_size": 100, "schedule": "constant"},
-            "small": {"lr": 2e-3, "batch_size": 128, "schedule": "onecycle"}}
+            "small": {"lr": 2e-3, "batch_size": 128, "schedule": "onecycle", "act": "leaky"}}
 
 
 def spec_of(arch: str):
@@ -54,11 +54,12 @@ def train_pilot(data: list[str | Path], out: str | Path, arch: str = "small", ep
     dm = PilotDataModule(data, spec, batch_size, val_fraction, augment, workers, seed, balance)
     dm.setup()
     task = PilotTask(arch=arch, lr=lr, speed_weight=speed_weight, input_size=(spec.width, spec.height), width=width,
-                     schedule=schedule)
+                     schedule=schedule, act=DEFAULTS[arch].get("act", "elu"))
     task.samples_dir = out / "samples"
     info = RunInfo(data, {"arch": arch})
     save_run_config(out, {"task": "pilot", "arch": arch, "data": info.data, "data_hash": info.data_hash,
                           "epochs": epochs, "batch_size": batch_size, "lr": lr, "schedule": schedule, "width": width,
+                          "act": DEFAULTS[arch].get("act", "elu"),
                           "speed_weight": speed_weight, "balance": balance, "val_fraction": val_fraction, "seed": seed,
                           "deterministic": deterministic, "input": [spec.width, spec.height],
                           "augment": None if augment is None else augment.__dict__,

@@ -27,7 +27,10 @@ def pick_steering(out: torch.Tensor, desire: torch.Tensor) -> torch.Tensor:
 
 class PilotTask(L.LightningModule):
     def __init__(self, arch: str = "pilotnet", lr: float = 1e-4, weight_decay: float = 0.0, speed_weight: float = 0.1,
-                 input_size: tuple[int, int] = (160, 120), width: int = 16, schedule: str = "constant"):
+                 input_size: tuple[int, int] = (160, 120), width: int = 16, schedule: str = "constant",
+                 act: str = "elu"):
+        # act: small's activation. "elu" is the default here for the checkpoints saved before the
+        # choice existed (their hyperparameters do not name it); train_pilot asks for "leaky"
         super().__init__()
         if arch not in ARCHS:
             raise ValueError(f"arch {arch!r}: one of {', '.join(ARCHS)}")
@@ -35,7 +38,7 @@ class PilotTask(L.LightningModule):
             raise ValueError(f"schedule {schedule!r}: one of {', '.join(SCHEDULES)}")
         self.save_hyperparameters()
         w, h = input_size
-        self.net = channels_last(PilotNet(h, w) if arch == "pilotnet" else SmallPilot(h, w, width))
+        self.net = channels_last(PilotNet(h, w) if arch == "pilotnet" else SmallPilot(h, w, width, act=act))
         self.samples_dir: Path | None = None
         self._val: list[tuple[torch.Tensor, torch.Tensor]] = []
 
