@@ -183,6 +183,19 @@ def _ground_mask(camera: Camera, margin_px: float) -> np.ndarray:
     return camera._ground_mask(margin_px)
 
 
+def row_spans(seen: np.ndarray) -> tuple[list[bool], list[int], list[int], bool]:
+    """Per row of a bool (h, w) mask of seen ground: whether any is seen, the first and the last
+    seen column (0 and w - 1 where none), and whether every row sees one unbroken span (a
+    bird's-eye view's footprint of the camera is convex, so it does: a seen column is then told
+    by the span's ends)."""
+    w = seen.shape[1]
+    any_seen = seen.any(axis=1).tolist()
+    first = seen.argmax(axis=1).tolist()
+    last = (w - 1 - seen[:, ::-1].argmax(axis=1)).tolist()
+    spans = bool(np.array_equal(seen.sum(axis=1), np.where(any_seen, np.subtract(last, first) + 1, 0)))
+    return any_seen, first, last, spans
+
+
 @lru_cache(maxsize=32)
 def _visible(bev: "BirdsEye") -> np.ndarray:
     cam = bev.camera
@@ -231,6 +244,18 @@ class BirdsEye:
         """uint8 (h, w) read-only: 255 where the camera sees the ground. Fixed per view, so made
         once (every lane method and the junction detector ask for it each frame)."""
         return _visible(self)
+
+    @cached_property
+    def seen(self) -> np.ndarray:
+        """bool (h, w) read-only: visible() as a mask (made once per view)."""
+        mask = self.visible() > 0
+        mask.setflags(write=False)
+        return mask
+
+    @cached_property
+    def seen_rows(self) -> tuple[list[bool], list[int], list[int], bool]:
+        """row_spans(seen), made once per view: the carriageway's scan reads it every frame."""
+        return row_spans(self.seen)
 
     def warp(self, image: np.ndarray, interpolation: int = cv2.INTER_LINEAR) -> np.ndarray:
         """Camera image (H,W[,C], any dtype) -> bird's-eye image (size[1], size[0][,C])."""

@@ -12,6 +12,7 @@ Ground frame: metres, x right of the car, y ahead, with the car on its lane's ce
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import cv2
@@ -19,10 +20,15 @@ import numpy as np
 
 from signlane.camera import BirdsEye, Camera
 from signlane.lanes.geometry import polyfit
+from signlane.order_stats import median_rows
 
 
 _OPEN_KERNEL = np.ones((3, 3), np.uint8)  # drops single-pixel specks of look-alike colour
 _LINE_GAP_KERNEL = np.ones((5, 1), np.uint8)  # bridges gaps of a row or two in an edge line
+
+
+def _clip_box(v) -> tuple[int, int, int]:
+    return tuple(min(255, max(0, int(x))) for x in v)
 
 
 @dataclass(frozen=True)
@@ -85,6 +91,7 @@ class JunctionDetector:
         size = (int(2 * p.x_half_m * p.px_per_m), int((p.y_range_m[1] - p.y_range_m[0]) * p.px_per_m))
         self.bev: BirdsEye = camera.birdseye(size, (-p.x_half_m, p.x_half_m), p.y_range_m)
         self.visible = self.bev.visible() > 0
+        self._visible8 = self.visible.astype(np.uint8) * 255
         self.camera = camera
         self._bands: dict[tuple, tuple[np.ndarray, ...]] = {}  # image rows and columns of each edge band
         # visible bird's-eye pixels beyond outer_m to either side (fixed per camera)
@@ -110,17 +117,26 @@ class JunctionDetector:
         if maps is not None:
             road = maps.road_in(self.bev.image_to_bev_h(), self.bev.size)[0]
             return cv2.morphologyEx((road & self.visible).astype(np.uint8) * 255, cv2.MORPH_OPEN, _OPEN_KERNEL)
-        lab = cv2.cvtColor(self.bev.warp(image_bgr), cv2.COLOR_BGR2LAB).astype(np.int16)
+        lab8 = cv2.cvtColor(self.bev.warp(image_bgr), cv2.COLOR_BGR2LAB)
         y0, y1 = p.y_range_m[0], p.y_range_m[0] + 3.0
         rows = slice(int((p.y_range_m[1] - y1) * p.px_per_m), int((p.y_range_m[1] - y0) * p.px_per_m))
         cols = slice(self._col(-0.9), self._col(0.9))
-        ref = np.median(lab[rows, cols].reshape(-1, 3), axis=0)
-        d = np.abs(lab - ref.astype(np.int16))
-        # road in shadow is darker but keeps its hue: any L down to shadow_floor of the reference
-        light = (d[..., 0] < p.lab_tol[0]) | ((lab[..., 0] < ref[0]) & (lab[..., 0] > p.shadow_floor * ref[0]))
-        road = light & (d[..., 1] < p.lab_tol[1]) & (d[..., 2] < p.lab_tol[2])
-        paint = (lab[..., 0] > ref[0] + 25) & (np.abs(lab[..., 1] - 128) < 20)
-        mask = ((road | paint) & self.visible).astype(np.uint8) * 255
+        ref = median_rows(lab8[rows, cols].reshape(-1, 3))
+        # each test is a box in integer Lab, so each mask is one cv2.inRange on the uint8 image:
+        # road is within lab_tol of the reference (its truncated integer), or, in shadow, darker
+        # but keeps its hue: any L below the reference down to shadow_floor of it
+        r = [int(v) for v in ref]  # (truncated, as astype(int16) does)
+        lo = [v - math.ceil(t) + 1 for v, t in zip(r, p.lab_tol)]
+        hi = [v + math.ceil(t) - 1 for v, t in zip(r, p.lab_tol)]
+        shade = (math.floor(p.shadow_floor * ref[0]) + 1, math.ceil(ref[0]) - 1)
+        if shade[0] <= shade[1]:  # it meets the tolerance's span (it ends at the reference)
+            lo[0], hi[0] = min(lo[0], shade[0]), max(hi[0], shade[1])
+        road = cv2.inRange(lab8, _clip_box(lo), _clip_box(hi))
+        # paint: lighter than the road by 25 and colourless (|a - 128| < 20)
+        paint_l = math.floor(ref[0] + 25) + 1
+        if paint_l <= 255:
+            road = cv2.bitwise_or(road, cv2.inRange(lab8, (paint_l, 109, 0), (255, 147, 255)))
+        mask = cv2.bitwise_and(road, self._visible8)
         return cv2.morphologyEx(mask, cv2.MORPH_OPEN, _OPEN_KERNEL)
 
     def line_response(self, image_bgr: np.ndarray, rows: tuple[int, int] | None = None) -> np.ndarray:

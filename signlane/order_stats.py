@@ -34,3 +34,14 @@ def quantile(values: np.ndarray, q: float) -> float:
     hi = min(lo + 1, n - 1)
     part = np.partition(values, (lo, hi) if hi != lo else lo)
     return float(part[lo]) + (float(part[hi]) - float(part[lo])) * (pos - lo)
+
+
+def median_rows(values: np.ndarray) -> np.ndarray:
+    """np.median(values, axis=0) of a non-empty 2-D integer array (float64, as numpy gives):
+    a colour patch's median colour."""
+    n = len(values)
+    part = np.partition(values, (n - 1) // 2 if n % 2 else (n // 2 - 1, n // 2), axis=0)
+    if n % 2:
+        return part[n // 2].astype(np.float64)
+    return (part[n // 2 - 1].astype(np.float64) + part[n // 2]) / 2.0
+

@@ -59,3 +59,17 @@ def test_birdseye_maps_ground_metres_to_its_pixels():
     h = bev.image_to_bev_h()
     p = np.column_stack([pix, np.ones(3)]) @ h.T
     assert np.allclose(p[:, :2] / p[:, 2:], uv, atol=1e-6)
+
+
+def test_a_birdseye_views_rows_each_see_one_span_and_a_holed_mask_does_not():
+    from signlane.camera import row_spans, via_camera
+    bev = via_camera(320, 240).birdseye((224, 152), (-14.0, 14.0), (3.0, 22.0))
+    any_seen, first, last, spans = bev.seen_rows
+    assert spans and sum(any_seen) > 100
+    row = max(i for i, a in enumerate(any_seen) if a)  # the nearest seen row: the frustum is narrower there
+    assert first[row] > 0 and last[row] < 223 and bev.seen[row, first[row]:last[row] + 1].all()
+    seen = bev.seen.copy()
+    seen[row, (first[row] + last[row]) // 2] = False
+    assert not row_spans(seen)[3]
+    with pytest.raises(ValueError):
+        bev.seen[0, 0] = False  # shared by every caller: read-only

@@ -30,3 +30,11 @@ def test_integer_columns_and_the_input_left_alone():
     a = np.array([7, 1, 4, 9, 2], np.int64)
     assert order_stats.median(a) == 4.0 and order_stats.quantile(a, 0.02) == pytest.approx(1.08)
     assert a.tolist() == [7, 1, 4, 9, 2]
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.tuples(*(st.integers(0, 255),) * 3), min_size=1, max_size=80))
+def test_row_medians_of_a_colour_patch_are_numpys(rows):
+    a = np.array(rows, np.int16)
+    assert np.array_equal(order_stats.median_rows(a), np.median(a, axis=0))
+    assert np.array_equal(order_stats.median_rows(a.astype(np.uint8)), np.median(a, axis=0))

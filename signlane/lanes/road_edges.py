@@ -27,10 +27,11 @@ from dataclasses import dataclass, replace
 import cv2
 import numpy as np
 
-from signlane.camera import BirdsEye, Camera
+from signlane.camera import BirdsEye, Camera, row_spans
 from signlane.lanes import register
 from signlane.lanes.geometry import Boundary, camera_for, estimate_from_fits, fit_boundary, slant
 from signlane.lanes.seg_model import FrameMaps
+from signlane.order_stats import median_rows
 from signlane.types import LaneEstimate
 
 NAME = "road-edges"
@@ -130,8 +131,8 @@ def road_mask(bev_bgr: np.ndarray, visible: np.ndarray, p: RoadEdgesParams,
 def _patch_ahead(lab: np.ndarray, p: RoadEdgesParams) -> np.ndarray:
     """Median Lab colour of the bird's-eye patch just ahead of the car."""
     h, w = lab.shape[:2]
-    return np.median(lab[h - max(2, int(1.2 * p.px_per_m)):, w // 2 - int(0.8 * p.px_per_m): w // 2 + int(0.8 * p.px_per_m)]
-                     .reshape(-1, 3), axis=0)
+    return median_rows(lab[h - max(2, int(1.2 * p.px_per_m)):, w // 2 - int(0.8 * p.px_per_m): w // 2 + int(0.8 * p.px_per_m)]
+                       .reshape(-1, 3))
 
 
 def learned_road_mask(bev_bgr: np.ndarray, visible: np.ndarray, bev: BirdsEye, maps: FrameMaps, p: RoadEdgesParams):
@@ -224,17 +225,22 @@ def scan_edges(road: np.ndarray, visible: np.ndarray, bev: BirdsEye, p: RoadEdge
     run_end = (np.nonzero(step == -1)[1] - 1).tolist()
     bounds = np.searchsorted(run_row, np.arange(h + 1)).tolist()
     run_start = run_start.tolist()
-    any_seen = visible.any(axis=1).tolist()
-    first_seen = visible.argmax(axis=1).tolist()
-    last_seen = (w - 1 - visible[:, ::-1].argmax(axis=1)).tolist()
+    # each row's seen span (made once per view when `visible` is the view's own): where every
+    # row sees one span, whether a column is seen is a comparison with the span's ends
+    any_seen, first_seen, last_seen, spans = bev.seen_rows if visible is bev.seen else row_spans(visible)
+    # the loop runs once per row, so the parameters and the edges' helpers are inlined
+    # (_follows, _slant: each edge's slant changes only when a row adds to its history)
+    jump, step_px, blind_max = p.jump_m * k, p.step_m * k, 10 * k
+    min_w, max_w, near_px = p.min_width_m, p.max_width_m, int(0.6 * k)
+    slant_l = slant_r = 1.0
     for row in range(h - 1, -1, -1):
         c = int(round(centre))
         lo_run, hi_run = bounds[row], bounds[row + 1]
         i = bisect.bisect_right(run_start, c, lo_run, hi_run) - 1  # the run starting at or before c
         if not (0 <= c < w) or i < lo_run or run_end[i] < c:
             line = road[row]
-            lo_c = max(0, c - int(0.6 * k))
-            near = np.flatnonzero(line[lo_c: c + int(0.6 * k) + 1])
+            lo_c = max(0, c - near_px)
+            near = np.flatnonzero(line[lo_c: c + near_px + 1])
             if len(near) == 0:
                 misses += 1
                 if misses > 3:
@@ -246,29 +252,56 @@ def scan_edges(road: np.ndarray, visible: np.ndarray, bev: BirdsEye, p: RoadEdge
         misses = 0
         left, right = run_start[i], run_end[i]  # the run of road through c
         # a run that ends where the view does (the road bends out of the frame) has no edge there
-        seen_row = visible[row]
-        ok_l = left > 1 and seen_row[left - 2] and _follows(hist_l, left, p.jump_m * k, p.step_m * k)
-        ok_r = right < w - 2 and seen_row[right + 2] and _follows(hist_r, right, p.jump_m * k, p.step_m * k)
+        seen = any_seen[row]
+        if spans:
+            f_row, l_row = first_seen[row], last_seen[row]
+            seen_l = seen and f_row <= left - 2 <= l_row
+            seen_r = seen and f_row <= right + 2 <= l_row
+        else:
+            seen_l = left > 1 and bool(visible[row, left - 2])
+            seen_r = right < w - 2 and bool(visible[row, right + 2])
+        # an edge is where its last rows lead: near the straight continuation of its last two
+        # rows, or a small step from the last (a kink of VIA's chamfered turns); a side road or
+        # a bend seen side-on moves the run's end much further in one row
+        ok_l = left > 1 and seen_l and (
+            not hist_l or abs(left - (hist_l[-1] if len(hist_l) < 2 else 2 * hist_l[-1] - hist_l[-2])) <= jump
+            or abs(left - hist_l[-1]) <= step_px)
+        ok_r = right < w - 2 and seen_r and (
+            not hist_r or abs(right - (hist_r[-1] if len(hist_r) < 2 else 2 * hist_r[-1] - hist_r[-2])) <= jump
+            or abs(right - hist_r[-1]) <= step_px)
         run = (right - left) / k
         blind = 0 if (ok_l or ok_r) else blind + 1
-        if blind > 10 * k:
+        if blind > blind_max:
             break  # 10 m without an edge: nothing more to follow
+        # a row crosses a bending road aslant: its run is the width over the cosine of the edges'
+        # angle, from each edge's last 6 rows (1 when straight ahead; about 1.3 on a 6 m bend)
         if ok_l:
             hist_l.append(left)
+            if len(hist_l) >= 6:
+                slope = (hist_l[-1] - hist_l[-6]) / 5  # pixels across per row: rows and columns share a scale
+                slant_l = slant(slope)
         if ok_r:
             hist_r.append(right)
-        # a row crosses a bending road aslant: its run is the width over the cosine of the edges' angle
-        slant_l, slant_r = _slant(hist_l), _slant(hist_r)
+            if len(hist_r) >= 6:
+                slope = (hist_r[-1] - hist_r[-6]) / 5
+                slant_r = slant(slope)
         across = run / (0.5 * (slant_l + slant_r))
-        if ok_l and ok_r and p.min_width_m < across < p.max_width_m:
+        if ok_l and ok_r and min_w < across < max_w:
             width_m = 0.9 * width_m + 0.1 * across
         # where an edge jumped away, it goes on from its last rows (or one width from the other)
-        pl = hist_l[-1] if hist_l else None
-        pr = hist_r[-1] if hist_r else None
-        lo = left if ok_l else (right - width_m * k * slant_r if ok_r else (pl if pl is not None else centre - width_m * k / 2))
-        hi = right if ok_r else (left + width_m * k * slant_l if ok_l else (pr if pr is not None else centre + width_m * k / 2))
+        if ok_l:
+            lo = left
+        elif ok_r:
+            lo = right - width_m * k * slant_r
+        else:
+            lo = hist_l[-1] if hist_l else centre - width_m * k / 2
+        if ok_r:
+            hi = right
+        elif ok_l:
+            hi = left + width_m * k * slant_l
+        else:
+            hi = hist_r[-1] if hist_r else centre + width_m * k / 2
         centre = 0.5 * (lo + hi)
-        seen = any_seen[row]
         out.append((row, left, right, ok_l, ok_r, lo, hi, first_seen[row] if seen else c, last_seen[row] if seen else c))
     a = np.array(out, float).reshape(-1, 9)
     x0, y1 = bev.x_range_m[0], bev.y_range_m[1]
@@ -278,24 +311,6 @@ def scan_edges(road: np.ndarray, visible: np.ndarray, bev: BirdsEye, p: RoadEdge
                     float(bev.y_range_m[1]), road, visible, bev)
 
 
-def _slant(hist: list[float], rows: int = 6) -> float:
-    """1 / cos of the angle an edge runs at across the rows, from its last rows (1 when straight
-    ahead; about 1.3 on a 6 m bend, where a width laid along the row would fall 0.6 m short)."""
-    if len(hist) < rows:
-        return 1.0
-    return slant((hist[-1] - hist[-rows]) / (rows - 1))  # pixels across per row: rows and columns share a scale
-
-
-def _follows(hist: list[float], x: float, tol: float, step: float) -> bool:
-    """Is x where the edge's last rows lead: near the straight continuation of its last two
-    rows, or a small step from the last (a kink of VIA's chamfered turns)? A side road or a bend
-    seen side-on moves the run's end much further in one row."""
-    if not hist:
-        return True
-    pred = hist[-1] if len(hist) < 2 else 2 * hist[-1] - hist[-2]
-    return abs(x - pred) <= tol or abs(x - hist[-1]) <= step
-
-
 def carriageway(image_bgr: np.ndarray, cam: Camera, p: RoadEdgesParams, state: RoadEdgesState,
                 maps: FrameMaps | None = None):
     """(left, right Boundary | None, width m, new state, road mask uint8 in the image or None).
@@ -303,7 +318,7 @@ def carriageway(image_bgr: np.ndarray, cam: Camera, p: RoadEdgesParams, state: R
     mask is then the model's road at the frame's size)."""
     h, w = image_bgr.shape[:2]
     bev = _bev(cam, p, state)
-    visible = bev.visible() > 0
+    visible = bev.seen
     bev_bgr = bev.warp(image_bgr[:, :, :3])
     if maps is None:
         road, bright, ref, lab_img = road_mask(bev_bgr, visible, p, state.road_lab)
