@@ -212,6 +212,27 @@ def test_our_pilot_warms_up_then_anneals_its_rate_while_pilotnet_keeps_s3s_const
         PilotTask(arch="small", schedule="cosine")
 
 
+def test_new_runs_train_leaky_relu_while_checkpoints_without_an_activation_keep_elu():
+    import torch
+
+    from signlane.pilot import PILOTNET_SPEC, SMALL_SPEC
+    from signlane_train.pilot import DEFAULTS
+    from signlane_train.pilot_data import cache_size
+    from signlane_train.pilot_net import SmallPilot
+    from signlane_train.pilot_task import PilotTask
+
+    def acts(task):
+        return {type(m) for m in task.net.modules() if isinstance(m, (torch.nn.ELU, torch.nn.LeakyReLU))}
+    assert DEFAULTS["small"]["act"] == "leaky"
+    assert acts(PilotTask(arch="small", input_size=(96, 72), act="leaky")) == {torch.nn.LeakyReLU}
+    # a checkpoint saved before the choice has no "act" in its hyperparameters: ELU, as trained
+    assert acts(PilotTask(arch="small", input_size=(96, 72))) == {torch.nn.ELU}
+    with pytest.raises(ValueError, match="activation 'relu6'"):
+        SmallPilot(act="relu6")
+    # frames are augmented at the net's input size, never above the cache's
+    assert cache_size(SMALL_SPEC) == (96, 72) and cache_size(PILOTNET_SPEC) == (160, 120)
+
+
 def test_frames_load_alike_on_one_thread_or_many_and_an_unreadable_one_is_named(tmp_path):
     from signlane.pilot import PilotFrame
     from signlane_train.pilot_data import load_frames
