@@ -20,15 +20,12 @@ import numpy as np
 
 from signlane.camera import BirdsEye, Camera
 from signlane.lanes.geometry import polyfit
+from signlane.lanes.road_edges import lab_box
 from signlane.order_stats import median_rows
 
 
 _OPEN_KERNEL = np.ones((3, 3), np.uint8)  # drops single-pixel specks of look-alike colour
 _LINE_GAP_KERNEL = np.ones((5, 1), np.uint8)  # bridges gaps of a row or two in an edge line
-
-
-def _clip_box(v) -> tuple[int, int, int]:
-    return tuple(min(255, max(0, int(x))) for x in v)
 
 
 @dataclass(frozen=True)
@@ -131,7 +128,7 @@ class JunctionDetector:
         shade = (math.floor(p.shadow_floor * ref[0]) + 1, math.ceil(ref[0]) - 1)
         if shade[0] <= shade[1]:  # it meets the tolerance's span (it ends at the reference)
             lo[0], hi[0] = min(lo[0], shade[0]), max(hi[0], shade[1])
-        road = cv2.inRange(lab8, _clip_box(lo), _clip_box(hi))
+        road = cv2.inRange(lab8, lab_box(lo), lab_box(hi))
         # paint: lighter than the road by 25 and colourless (|a - 128| < 20)
         paint_l = math.floor(ref[0] + 25) + 1
         if paint_l <= 255:

@@ -45,6 +45,7 @@ def train_pilot(data: list[str | Path], out: str | Path, arch: str = "small", ep
     lr = DEFAULTS[arch]["lr"] if lr is None else lr
     batch_size = DEFAULTS[arch]["batch_size"] if batch_size is None else batch_size
     schedule = DEFAULTS[arch]["schedule"] if schedule is None else schedule
+    act = DEFAULTS[arch].get("act", "elu")  # small's activation (pilotnet has ELU, as published)
     out = Path(out)
     if threads > 0:
         torch.set_num_threads(threads)
@@ -54,12 +55,12 @@ def train_pilot(data: list[str | Path], out: str | Path, arch: str = "small", ep
     dm = PilotDataModule(data, spec, batch_size, val_fraction, augment, workers, seed, balance)
     dm.setup()
     task = PilotTask(arch=arch, lr=lr, speed_weight=speed_weight, input_size=(spec.width, spec.height), width=width,
-                     schedule=schedule, act=DEFAULTS[arch].get("act", "elu"))
+                     schedule=schedule, act=act)
     task.samples_dir = out / "samples"
     info = RunInfo(data, {"arch": arch})
     save_run_config(out, {"task": "pilot", "arch": arch, "data": info.data, "data_hash": info.data_hash,
                           "epochs": epochs, "batch_size": batch_size, "lr": lr, "schedule": schedule, "width": width,
-                          "act": DEFAULTS[arch].get("act", "elu"),
+                          "act": act,
                           "speed_weight": speed_weight, "balance": balance, "val_fraction": val_fraction, "seed": seed,
                           "deterministic": deterministic, "input": [spec.width, spec.height],
                           "augment": None if augment is None else augment.__dict__,

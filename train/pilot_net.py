@@ -7,9 +7,10 @@
   planner's chosen exit picks the branch, as in conditional imitation learning) and the
   teacher's target speed. Its activation is leaky ReLU (`act="leaky"`, slope 0.1, what
   training builds now) or ELU (`act="elu"`, the pilots trained before, whose checkpoints say
-  nothing about it): ELU's exponential was most of a training step on one thread (on the first
-  block's 128x16x36x48 activations, 31 ms of a 60 ms forward pass), and a step with leaky ReLU
-  takes about half the time (114 -> 61 ms a batch of 128, channels-last, one thread).
+  nothing about it): on one thread ELU's exponential was the largest part of a training step
+  (a batch of 128, channels-last: the ELUs 48 ms of an 84 ms forward pass, 31 ms of it on the
+  first block's 128x16x36x48 activations), and a step with leaky ReLU takes about half the time
+  (114 -> 61 ms).
 """
 from __future__ import annotations
 

@@ -116,7 +116,7 @@ def road_mask(bev_bgr: np.ndarray, visible: np.ndarray, p: RoadEdgesParams,
     lo = [math.floor(v - t) + 1 for v, t in zip(r, p.lab_tol)]
     hi = [math.ceil(v + t) - 1 for v, t in zip(r, p.lab_tol)]
     lo[0] = min(lo[0], math.floor(p.shadow_floor * r[0]) + 1)
-    road = cv2.inRange(lab8, _box(lo), _box(hi))
+    road = cv2.inRange(lab8, lab_box(lo), lab_box(hi))
     bright = _lines(lab8, p)
     # paint and kerbs belong to the carriageway, and so does grey asphalt lighter than the patch
     # ahead by more than the tolerance (a mottled road: else its light blotches are holes that
@@ -148,7 +148,8 @@ def learned_road_mask(bev_bgr: np.ndarray, visible: np.ndarray, bev: BirdsEye, m
     return road, paint, _patch_ahead(lab, p), lab
 
 
-def _box(v) -> tuple[int, int, int]:
+def lab_box(v) -> tuple[int, int, int]:
+    """A cv2.inRange bound of integer Lab values, clipped to uint8."""
     return tuple(min(255, max(0, int(x))) for x in v)
 
 
@@ -253,6 +254,7 @@ def scan_edges(road: np.ndarray, visible: np.ndarray, bev: BirdsEye, p: RoadEdge
         left, right = run_start[i], run_end[i]  # the run of road through c
         # a run that ends where the view does (the road bends out of the frame) has no edge there
         seen = any_seen[row]
+        # (a seen column two beyond the run's end lies inside the frame: left > 1, right < w - 2)
         if spans:
             f_row, l_row = first_seen[row], last_seen[row]
             seen_l = seen and f_row <= left - 2 <= l_row
@@ -263,10 +265,10 @@ def scan_edges(road: np.ndarray, visible: np.ndarray, bev: BirdsEye, p: RoadEdge
         # an edge is where its last rows lead: near the straight continuation of its last two
         # rows, or a small step from the last (a kink of VIA's chamfered turns); a side road or
         # a bend seen side-on moves the run's end much further in one row
-        ok_l = left > 1 and seen_l and (
+        ok_l = seen_l and (
             not hist_l or abs(left - (hist_l[-1] if len(hist_l) < 2 else 2 * hist_l[-1] - hist_l[-2])) <= jump
             or abs(left - hist_l[-1]) <= step_px)
-        ok_r = right < w - 2 and seen_r and (
+        ok_r = seen_r and (
             not hist_r or abs(right - (hist_r[-1] if len(hist_r) < 2 else 2 * hist_r[-1] - hist_r[-2])) <= jump
             or abs(right - hist_r[-1]) <= step_px)
         run = (right - left) / k
