@@ -458,6 +458,9 @@ def _dead_end(scan, group: np.ndarray, beyond: np.ndarray, view: np.ndarray, p: 
     return True
 
 
+VERGE_LAB = np.array([30.0, 12.0, 12.0])  # a verge pixel: this close to the verge's Lab colour, each channel
+
+
 def _row_reaches(scan, us: np.ndarray, vs: np.ndarray, sgn: float, verge: np.ndarray, p: ScanJunctionParams):
     """How far the road of each bird's-eye row vs[i] goes past its edge at column us[i] (metres),
     outwards to side sgn: ("end", m) where the verge's own ground follows it for `end_seen_m`;
@@ -471,10 +474,14 @@ def _row_reaches(scan, us: np.ndarray, vs: np.ndarray, sgn: float, verge: np.nda
     cols = us.astype(int)[:, None] + (1 if sgn > 0 else -1) * np.arange(w)[None, :]
     inside = (cols >= 0) & (cols < w)
     cols = np.clip(cols, 0, w - 1)
-    rows = vs.astype(int)[:, None]
-    road, vis = scan.road[rows, cols] & inside, scan.visible[rows, cols] & inside
-    d = np.abs(scan.lab[rows, cols] - verge)
-    verge_px = vis & ~road & (d[..., 0] < 30) & (d[..., 1] < 12) & (d[..., 2] < 12)
+    rows = vs.astype(int)
+    # the verge's colour tested on the rows' own pixels before they are taken outwards from the
+    # edge (the same pixels, 2-D gathers): |x - verge| < t for integer x is one integer range
+    near = cv2.inRange(np.ascontiguousarray(scan.lab[rows]), tuple(np.floor(verge - VERGE_LAB) + 1),
+                       tuple(np.ceil(verge + VERGE_LAB) - 1))
+    road = np.take_along_axis(scan.road[rows], cols, 1) & inside
+    vis = np.take_along_axis(scan.visible[rows], cols, 1) & inside
+    verge_px = vis & ~road & (np.take_along_axis(near, cols, 1) > 0)
     # the first stretch of n verge pixels in a row starts where the road has ended
     runs = np.zeros((len(cols), w + 1), np.int32)
     np.cumsum(verge_px, axis=1, out=runs[:, 1:])

@@ -151,3 +151,33 @@ def test_only_a_caller_that_answers_puts_the_carriageway_off(painted_frames):
     infer_like = PerceptionStack(Config.load(None, ["signs.enabled=false"]), junctions=False)
     infer_like.lanes_on(painted_frames[0])
     assert not infer_like.lane.params.edges_after_answer
+
+
+def test_a_road_without_a_centre_line_runs_one_method_a_frame_with_the_drive_stacks_setting(monkeypatch):
+    """With `edges_after_answer`, a road without a centre line runs, per frame, the method the
+    frames before chose (read as lanes: the paint; kerbed: the carriageway), the other after its
+    answer. On a drive whose share of lane sightings wanders over the bar (random looks), the
+    lanes are those of both methods run at once but where the decision switches a frame later."""
+    sampler = DriveSampler(4, SamplerConfig(320, 240, style="via", effects="normal"))
+    frames = [sampler.sample(i).image for i in range(130)]
+    calls = []
+    for name in ("carriageway", "_paint"):
+        real = getattr(auto_module, name)
+        monkeypatch.setattr(auto_module, name, lambda *a, real=real, name=name: calls.append(name) or real(*a))
+    cam = via_camera(320, 240)
+    late, now = lanes.get("auto", camera=cam, edges_after_answer=True), lanes.get("auto", camera=cam)
+    both = same = read_as_lanes = 0
+    for img in frames:
+        calls.clear()
+        a = late(img)
+        both += len(set(calls)) == 2
+        pending = late.state.pending
+        if a.basis == "paint":  # read as lanes: answered from the paint, its carriageway put off
+            read_as_lanes += 1
+            assert calls == ["_paint"] and pending is not None and pending.look is not None
+        late.settle()
+        b = now(img)
+        now.settle()
+        same += (a.found, a.basis, a.offset) == (b.found, b.basis, b.offset)
+    assert both <= 2  # the first frame (nothing known) and frames read as lanes whose paint is not found
+    assert read_as_lanes >= 3 and same >= 125  # both readings occur; they differ only at the switches

@@ -15,7 +15,13 @@ thing on the next frame): the lanes are the same as with the look made at once. 
 a centre line the lane is the paint's wherever it is found, so with `edges_after_answer` (the
 drive stack's setting) the carriageway's scan of such a frame waits for its answer in the same
 way: whether the road still has a centre line, and the scan junctions read, are then those of
-the frame before, and the frame shows the frame before's drivable mask.
+the frame before, and the frame shows the frame before's drivable mask. On a road without a
+centre line it also makes each frame run one method, not both: whether the road reads as lanes (a
+highway) is then the frames before's, so a road read as lanes is answered from the paint where it
+is found (its carriageway and its look scored after the answer), and one read as kerbed from its
+carriageway (the look after the answer), even where this frame's look would tip the share over
+the bar: the switch comes a frame later (measured on random looks: the paint method and the
+carriageway each cost about 1.5 ms at 320x240, and frames near the bar paid both).
 
 With a road model (`model`: `--set lanes.model=FILE`, or `shipped`), the road is the model's
 (one run of the network per frame) instead of colour rules: the carriageway is scanned in its
@@ -67,9 +73,11 @@ class AutoParams:
     threads: int = 1  # the road model's onnxruntime threads
     model_paint: bool = False  # lanes fitted to the model's paint (else to sliding-window's own binary)
     # on a road with a centre line, the carriageway of a frame whose paint is found is scanned
-    # after the frame's answer (AutoState.settle): its lane is the paint's either way. Only for a
-    # caller that settles after each answer or reads the frame's drivable mask one frame late (the
-    # drive stack sets it); off, every frame's outputs are its own (infer, eval, autolabel)
+    # after the frame's answer (AutoState.settle): its lane is the paint's either way; on a road
+    # without one, a frame runs the method the frames before chose (lanes: the paint first; kerbed:
+    # the carriageway) and the other after its answer. Only for a caller that settles after each
+    # answer or reads the frame's drivable mask one frame late (the drive stack sets it); off,
+    # every frame's outputs are its own (infer, eval, autolabel)
     edges_after_answer: bool = False
 
     @classmethod
@@ -98,6 +106,7 @@ class _Edges:
     camera: Camera
     maps: seg_model.FrameMaps | None
     forgot: bool = False  # the tracks were forgotten after the frame (the scan goes after it is made)
+    look: LaneEstimate | None = None  # a road read as lanes: the frame's paint, scored against the scan
 
 
 @dataclass(frozen=True)
@@ -130,8 +139,11 @@ class AutoState:
             return self
         if isinstance(work, _Edges):
             # (the scan reads the road's width, colour and centre-paint memory, never the last scan)
-            _, _, _, road, mask = carriageway(work.image_bgr, work.camera, params.road, self.road, work.maps)
-            return replace(self, road=road.forget_tracks() if work.forgot else road, pending=None, drivable=mask)
+            _, _, width, road, mask = carriageway(work.image_bgr, work.camera, params.road, self.road, work.maps)
+            done = replace(self, road=road.forget_tracks() if work.forgot else road, pending=None, drivable=mask)
+            if work.look is None:
+                return done
+            return replace(done, lanes_seen=_seen(work.look, params, width, road.scan, self.lanes_seen), since_check=0)
         _, paint_state, lanes_seen = _look(work.image_bgr, work.camera, params, work.paint, self.maps, work.width_m,
                                            work.scan, self.lanes_seen)
         return replace(self, paint=None if work.forgot else paint_state, lanes_seen=lanes_seen, since_check=0,
@@ -149,15 +161,18 @@ def auto(image_bgr: np.ndarray, camera: Camera | None, params: AutoParams,
     cam = camera_for(image_bgr, camera)
     maps = _road_maps(image_bgr, params)
     painted = None  # the paint method's (estimate, state) on this frame, once looked for
-    if params.edges_after_answer and state.road.two_lane:
-        # a road with a centre line: where the paint is found it is the lane, and the carriageway
-        # (whether the road still has a centre line, its trace for junctions) can wait for the answer
+    read_as_lanes = not state.road.two_lane and state.lanes_seen is not None and state.lanes_seen > params.lanes_above
+    if params.edges_after_answer and (state.road.two_lane or read_as_lanes):
+        # a road with a centre line, or one the frames before read as lanes: where the paint is
+        # found it is the lane, and the carriageway (whether the road still has a centre line,
+        # its trace for junctions, the share of lane sightings) can wait for the answer
         painted = _paint(image_bgr, cam, params, state.paint, maps)
         est, paint_state = painted
         if est.found:
             return replace(est, method=NAME, basis="paint", drivable_mask=state.drivable), \
                 AutoState(state.road, paint_state, state.lanes_seen, maps=maps,
-                          pending=_Edges(image_bgr, cam, maps), drivable=state.drivable)
+                          pending=_Edges(image_bgr, cam, maps, look=None if state.road.two_lane else est),
+                          drivable=state.drivable)
     left, right, width, road_state, mask = carriageway(image_bgr, cam, params.road, state.road, maps)
     if not road_state.two_lane:
         # no centre line on the carriageway's middle: a kerbed road (VIA's), or a wide road whose
@@ -170,13 +185,16 @@ def auto(image_bgr: np.ndarray, camera: Camera | None, params: AutoParams,
         if state.lanes_seen is not None and state.lanes_seen < params.settled_below \
                 and state.since_check + 1 < params.settled_every:
             return whole(), AutoState(road_state, None, state.lanes_seen, state.since_check + 1, maps, drivable=mask)
-        if state.lanes_seen is not None and _remember(state.lanes_seen, 1.0, params.lane_memory) <= params.lanes_above:
-            # one look cannot make it a lane road on this frame: its lane is the carriageway
-            # whatever the look finds, so the look waits until the frame's answer is out
+        if state.lanes_seen is not None and painted is None and (
+                _remember(state.lanes_seen, 1.0, params.lane_memory) <= params.lanes_above
+                or (params.edges_after_answer and not read_as_lanes)):
+            # one look cannot make it a lane road on this frame (or, edges_after_answer, the frames
+            # before read it as kerbed): its lane is the carriageway whatever the look finds, so the
+            # look waits until the frame's answer is out
             return whole(), AutoState(road_state, state.paint, state.lanes_seen, maps=maps,
                                     pending=_Look(image_bgr, cam, width, road_state.scan, state.paint), drivable=mask)
         est, paint_state, lanes_seen = _look(image_bgr, cam, params, state.paint, maps, width, road_state.scan,
-                                             state.lanes_seen)
+                                             state.lanes_seen, painted)
         if lanes_seen > params.lanes_above:
             if est.found:
                 return replace(est, method=NAME, basis="paint", drivable_mask=mask), \
@@ -215,13 +233,21 @@ def _paint(image_bgr: np.ndarray, cam: Camera, params: AutoParams, state: Slidin
 
 
 def _look(image_bgr: np.ndarray, cam: Camera, params: AutoParams, paint: SlidingWindowState | None,
-          maps: seg_model.FrameMaps | None, width: float, scan, lanes_seen: float | None):
+          maps: seg_model.FrameMaps | None, width: float, scan, lanes_seen: float | None,
+          painted: tuple[LaneEstimate, SlidingWindowState] | None = None):
     """A look for lane paint dividing a kerbed carriageway: (the paint method's estimate, its new
-    state, the running share of frames where it bounded a lane inside the carriageway)."""
-    est, paint_state = _paint(image_bgr, cam, params, paint, maps)
+    state, the running share of frames where it bounded a lane inside the carriageway). `painted`:
+    the paint method's (estimate, state) of this frame, if it has run on it already."""
+    est, paint_state = painted or _paint(image_bgr, cam, params, paint, maps)
+    return est, paint_state, _seen(est, params, width, scan, lanes_seen)
+
+
+def _seen(est: LaneEstimate, params: AutoParams, width: float, scan, lanes_seen: float | None) -> float:
+    """The running share of lane sightings with this frame's paint estimate: did it bound a lane
+    inside the carriageway (`width` m wide, `scan` its RoadScan)?"""
     inside = est.found and est.confidence >= params.lane_confidence and width > 0 \
         and est.lane_width_m < params.lane_share * width and _road_beside(est, scan, params)
-    return est, paint_state, _remember(lanes_seen, float(inside), params.lane_memory)
+    return _remember(lanes_seen, float(inside), params.lane_memory)
 
 
 def road_state(state) -> RoadEdgesState | None:
