@@ -282,6 +282,27 @@ def test_busy_driver_answers_every_frame_at_once_without_backlog(frames):
     assert srv.totals["perceive_ms_median"] >= 0 and srv.totals["answer_ms_p99"] >= srv.totals["answer_ms_median"]
 
 
+def test_each_connection_reports_its_own_latency_split(frames, caplog):
+    """Every connection's decode / perceive / answer medians and p99s go into its closing log line
+    and the server's totals (with the path it asked for): a benchmark reads the runs it made at
+    30 frames/s apart from its floods."""
+    caplog.set_level(logging.INFO, logger="signlane.drive")
+    with DriveServer(options=ServerOptions(port=0), driver_factory=lambda: SlowDriver(0.02)) as srv:
+        for path, n in (("/first", 3), ("/second", 5)):
+            with connect(srv.url + path) as ws:
+                for i in range(n):
+                    assert ask(ws, tel(frames[0], i)) == {"throttle": 0.5, "steering": 0.25}
+    first, second = srv.totals["connections"]
+    assert (first["path"], first["frames"], second["path"], second["frames"]) == ("/first", 3, "/second", 5)
+    for c in (first, second):
+        assert c["driven"] == c["frames"]
+        # the driver sleeps 20 ms a frame: its perceive time, inside the answer's
+        assert 20 <= c["perceive_ms_median"] <= c["answer_ms_median"] <= c["answer_ms_p99"]
+        assert 0 < c["decode_ms_median"] < c["answer_ms_median"]
+    lines = [r.getMessage() for r in caplog.records if "disconnected after" in r.getMessage()]
+    assert len(lines) == 2 and all("perceive median" in x and "answer median" in x for x in lines)
+
+
 class AfterAnswerDriver(SlowDriver):
     """Puts work off until its answer is out (answered()), as the drive stack does; the work of
     the frame at 7 m/s fails."""

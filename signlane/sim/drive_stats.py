@@ -68,6 +68,31 @@ class ErrorLog:
 RUN_SAMPLES = 20000
 
 
+SPLIT = ("decode", "perceive", "answer")
+
+
+def split_ms() -> dict[str, deque]:
+    """Empty latency lists of one run or connection: the last RUN_SAMPLES of each stage's ms."""
+    return {k: deque(maxlen=RUN_SAMPLES) for k in SPLIT}
+
+
+def split_summary(ms: dict) -> dict[str, float]:
+    """{stage}_ms_median and {stage}_ms_p99 of lists of ms per stage (stages without any left out)."""
+    out = {}
+    for k, v in ms.items():
+        if v:
+            out[f"{k}_ms_median"] = round(float(np.median(v)), 2)
+            out[f"{k}_ms_p99"] = round(float(np.percentile(v, 99)), 2)
+    return out
+
+
+def split_text(summary: dict) -> str:
+    """decode / perceive / answer medians and p99s of a split_summary, for a log line."""
+    parts = [f"{k} median {summary[f'{k}_ms_median']:.1f} ms, p99 {summary[f'{k}_ms_p99']:.1f} ms"
+             for k in SPLIT if f"{k}_ms_median" in summary]
+    return "; ".join(parts) or "no frames driven"
+
+
 @dataclass
 class Rates:
     """Counters and latencies since the last report, plus running totals for the final summary."""
@@ -81,8 +106,7 @@ class Rates:
     answer_ms: list[float] = field(default_factory=list)  # frame received -> answer sent (waits included)
     totals: dict[str, int] = field(default_factory=lambda: {"frames": 0, "processed": 0, "skipped": 0, "bad": 0})
     # the run's latencies for its summary (the last RUN_SAMPLES of each: a long run stays bounded)
-    run_ms: dict[str, deque] = field(default_factory=lambda: {k: deque(maxlen=RUN_SAMPLES)
-                                                              for k in ("decode", "perceive", "answer")})
+    run_ms: dict[str, deque] = field(default_factory=split_ms)
     since: float = field(default_factory=time.monotonic)
 
     def report(self, clients: int, now: float | None = None) -> str | None:
@@ -105,12 +129,7 @@ class Rates:
 
     def summary(self) -> dict[str, float]:
         """Median and p99 ms of decode, perceive and answer over the run (call after report)."""
-        out = {}
-        for k, v in self.run_ms.items():
-            if v:
-                out[f"{k}_ms_median"] = round(float(np.median(v)), 2)
-                out[f"{k}_ms_p99"] = round(float(np.percentile(v, 99)), 2)
-        return out
+        return split_summary(self.run_ms)
 
 
 def _ms(values: list[float]) -> str:

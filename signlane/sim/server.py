@@ -21,6 +21,7 @@ import logging
 import os
 import signal
 import time
+from collections import deque
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -34,7 +35,7 @@ from signlane.background_server import BackgroundServer
 from signlane.config import Config
 from signlane.imagecheck import DEFAULT_MAX_PIXELS
 from signlane.sim.drive_record import DiskWriter, Recorder, Shower, sent_command
-from signlane.sim.drive_stats import ErrorLog, Rates
+from signlane.sim.drive_stats import ErrorLog, Rates, split_ms, split_summary, split_text
 from signlane.sim.driver import Driver, SignStageError
 from signlane.sim.protocol import (MAX_MESSAGE_BYTES, SAFE_COMMAND, ProtocolError, Telemetry, decode_telemetry,
                                    encode_command)
@@ -96,6 +97,8 @@ class _Server:
         self.disk = DiskWriter() if (self.recorder or self.shower) else None
         self.clients = 0
         self.next_id = 1
+        # each ended connection's frames and latency split, in order (the last 1000)
+        self.finished: deque[dict] = deque(maxlen=1000)
         self.monitor = self.web = None
         if options.web:
             from signlane.drive.monitor import Monitor
@@ -134,7 +137,7 @@ class _Server:
         if self.recorder:
             self.recorder.close()
         self.rates.report(self.clients)
-        return {**self.rates.totals, **self.rates.summary()}
+        return {**self.rates.totals, **self.rates.summary(), "connections": list(self.finished)}
 
 
 class _Connection:
@@ -146,6 +149,7 @@ class _Connection:
         self.after: asyncio.Future | None = None  # the driver's work once an answer is out (answered())
         self.frames = self.driven = 0
         self.closed = False  # set once the client is gone: work not yet driven is dropped
+        self.ms = split_ms()  # this connection's own decode / perceive / answer latencies
 
     async def run(self) -> None:
         peer = self.ws.remote_address
@@ -155,10 +159,10 @@ class _Connection:
             self.driver = await loop.run_in_executor(self.server.pool, self.server.make_driver)
             async for message in self.ws:
                 await self.on_message(message)
-            log.info("client %d disconnected after %d frames", self.cid, self.frames)
+            log.info("client %d disconnected after %d frames; %s", self.cid, self.frames, split_text(self.split()))
         except ConnectionClosed as e:  # closed without a close frame, mid-message, too big, not UTF-8
-            log.info("client %d dropped after %d frames (%s)", self.cid, self.frames,
-                     why_closed(e, self.server.options.max_bytes * WS_SIZE_FACTOR))
+            log.info("client %d dropped after %d frames (%s); %s", self.cid, self.frames,
+                     why_closed(e, self.server.options.max_bytes * WS_SIZE_FACTOR), split_text(self.split()))
         except Exception as e:  # e.g. the driver cannot be built: end this connection, not the server
             log.error("client %d: %s: %s; closing its connection", self.cid, type(e).__name__, e)
             await self.ws.close(1011, "driver error")
@@ -171,6 +175,12 @@ class _Connection:
             if self.driver is not None:
                 self.driver.close()
             self.server.errors.flush(who=f"client {self.cid}")
+            self.server.finished.append({"client": self.cid, "path": self.ws.request.path if self.ws.request else "",
+                                         "frames": self.frames, "driven": self.driven, **self.split()})
+
+    def split(self) -> dict[str, float]:
+        """This connection's decode / perceive / answer medians and p99s (ms) so far."""
+        return split_summary(self.ms)
 
     async def on_message(self, message: str | bytes) -> None:
         t_recv = time.perf_counter()
@@ -215,6 +225,8 @@ class _Connection:
             rates.processed += 1
             rates.decode_ms.append(res.decode_ms)
             rates.perceive_ms.append(res.step_ms - res.decode_ms)
+            self.ms["decode"].append(res.decode_ms)
+            self.ms["perceive"].append(res.step_ms - res.decode_ms)
         self.latest = res.answer
         latency = await self.send(res.answer, t_recv)
         answered = getattr(self.driver, "answered", None)
@@ -267,6 +279,7 @@ class _Connection:
             return None  # the reader loop reports the disconnect
         ms = (time.perf_counter() - t_recv) * 1e3
         self.server.rates.answer_ms.append(ms)
+        self.ms["answer"].append(ms)
         return ms
 
     def keep(self, res: _Result) -> None:
@@ -300,13 +313,6 @@ def why_closed(e: ConnectionClosed, size_limit: int) -> str:
     if rcvd is not None:
         return f"code {rcvd.code} {rcvd.reason!r}"
     return "no close frame"
-
-
-def latency_split(totals: dict) -> str:
-    """decode / perceive / answer medians and p99s of a run's totals, for its last log line."""
-    parts = [f"{k} median {totals[f'{k}_ms_median']:.1f} ms, p99 {totals[f'{k}_ms_p99']:.1f} ms"
-             for k in ("decode", "perceive", "answer") if f"{k}_ms_median" in totals]
-    return "; ".join(parts) or "no frames driven"
 
 
 def probe_driver(make_driver: Callable[[], Any]) -> None:
@@ -357,7 +363,7 @@ async def serve(config: Config | None = None, options: ServerOptions | None = No
     finally:
         totals = server.close()
     log.info("drive server stopped: %d frames, %d driven, %d skipped, %d bad; %s", totals["frames"],
-             totals["processed"], totals["skipped"], totals["bad"], latency_split(totals))
+             totals["processed"], totals["skipped"], totals["bad"], split_text(totals))
     return totals
 
 
