@@ -63,6 +63,10 @@ class SignsConfig:
     min_score: float = 0.5  # classified signs below this score are dropped
     confirm_n: int = 3  # a sign is confirmed when seen in confirm_n of the last confirm_m frames
     confirm_m: int = 5
+    # on a car (the drive stack's face rows, signs/face_rows.py): the rows are searched whole on
+    # one frame in search_every, the frames between only around the frame before's proposals
+    # (tracked); 1: whole on every frame. Stills and videos (infer) search every frame whole
+    search_every: int = 3
 
 
 @dataclass(frozen=True)

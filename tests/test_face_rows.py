@@ -123,3 +123,48 @@ def test_a_check_frame_is_answered_from_the_band_and_checked_after_its_answer():
     assert stage.band.outside == 1
     stage.settle()  # once per due frame
     assert stage.band.outside == 1
+
+
+def _drive_with_signs(n: int):
+    """n consecutive 640x480 frames (30 frames/s) of a drive on via_town through VIA's camera, from
+    the first with a sign seen whole."""
+    sampler = DriveSampler(0, SamplerConfig(width=640, height=480, style="via", effects="clean", randomise=False),
+                           fps=30.0, track=load_track("via_town", "via", 0), camera=via_camera(640, 480))
+    start = next(i for i in range(0, 900, 5)
+                 if any(s.truncated == 0 and s.box[3] >= 20 for s in sampler.sample(i).truth.signs))
+    return [sampler.sample(i).image for i in range(start, start + n)]
+
+
+def test_proposals_near_a_frames_own_proposals_are_its_proposals():
+    """The tracked search around a frame's proposals finds those proposals again, box for box."""
+    from signlane.signs.proposals import propose_near
+    frames = _drive_with_signs(30)
+    compared = 0
+    for img in frames[::3]:
+        found = propose(img)
+        compared += len(found)
+        assert [(p.box, p.color) for p in propose_near(img, found)] == [(p.box, p.color) for p in found]
+    assert compared >= 10
+    assert propose_near(frames[0], []) == []
+
+
+def test_a_drive_stack_searches_the_band_whole_one_frame_in_three_and_tracks_between(monkeypatch):
+    """With a band, the stage searches the band whole on one frame in `search_every` and only
+    around the last frame's proposals between: on a drive past signs, the same labels frame by
+    frame as whole searches of every frame (the signs move a few pixels a frame), at a fraction
+    of the whole searches."""
+    from signlane.signs import proposals as proposals_module
+    frames = _drive_with_signs(45)
+    rows = face_rows(via_camera(640, 480), 4.0, LOW, HIGH)
+    whole = []
+    real = proposals_module.propose
+    monkeypatch.setattr(proposals_module, "propose", lambda *a, **k: whole.append(1) or real(*a, **k))
+    labels = {}
+    for every in (1, 3):
+        stage = SignStage(SignsConfig(search_every=every))
+        stage.band = RowBand((640, 480), rows, check_every=1000)
+        whole.clear()
+        labels[every] = [sorted(d.label for d in stage.step(img)[0] if d.label != "unknown") for img in frames]
+        assert len(whole) == (45 if every == 1 else 15)
+    assert sum(bool(x) for x in labels[1]) >= 20  # signs read on most frames
+    assert sum(a == b for a, b in zip(labels[1], labels[3])) >= 43

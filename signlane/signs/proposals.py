@@ -527,6 +527,11 @@ def propose(image_bgr: np.ndarray, params: ProposalParams | None = None, half: n
             union = cv2.morphologyEx(union, cv2.MORPH_CLOSE, ctx.kernel)
         for b in _components(union, "", ctx):
             blobs.append(replace(b, color=_color_of(masks["red"], masks["blue"], b.box)))
+    return _detections(blobs, params, W, H)
+
+
+def _detections(blobs: list[_Blob], params: ProposalParams, W: int, H: int) -> list[SignDetection]:
+    """The blobs after non-maximum suppression and the cap, as padded proposals, best first."""
     kept = _nms(blobs, params.nms_iou, params.max_proposals)
     return [SignDetection("unknown", round(b.score, 4), _pad(b.box, params.pad_frac, W, H), b.color) for b in kept]
 
@@ -603,14 +608,43 @@ def _search_regions(img: np.ndarray, params: ProposalParams, small: np.ndarray |
     # against a white face
     pale = [(c, hues, int(COARSE_S * s_min), v_min) for c, hues, s_min, v_min in specs]
     coarse = _coarse_candidates(_search_frame(band_hsv, loose, scales, pale, h, top), params.min_score)
-    if not coarse:
+    return _search_around(img, params, scales, [(b.box, b.color) for b in coarse], (W / small.shape[1], H / h))
+
+
+def _search_around(img: np.ndarray, params: ProposalParams, scales: tuple[float, float],
+                   places: list[tuple[tuple[int, int, int, int], str]], scale: tuple[float, float]) -> list[_Blob]:
+    """The full-resolution search of each colour in windows around its own places ((x, y, w, h)
+    boxes, `scale` times smaller than img, and their colour)."""
+    if not places:
         return []
+    H, W = img.shape[:2]
     ctx = _make_ctx(W, H, params, scales[1])
-    scale = (W / small.shape[1], H / h)
     blobs: list[_Blob] = []
-    for spec in specs:  # each colour only around what the half-size search found of that colour
-        boxes = sign_roi.windows([b.box for b in coarse if b.color == spec[0]], scale, (W, H), ctx.min_size)
+    for spec in _color_specs(params, scales):  # each colour only around its own places
+        boxes = sign_roi.windows([box for box, color in places if color == spec[0]], scale, (W, H), ctx.min_size)
         wins = [planes.window(sign_roi.blurred_hsv(img, box, params.blur_px), box, [spec], _chroma_floor(ctx))
                 for box in boxes]
         blobs += _search_windows(wins, ctx, [spec], whole=False)
     return blobs
+
+
+def propose_near(image_bgr: np.ndarray, near: list[SignDetection], params: ProposalParams | None = None,
+                 half: np.ndarray | None = None) -> list[SignDetection]:
+    """Sign proposals of a frame searched for only around `near` (the proposals of a frame just
+    before, tracked: a sign moves a few pixels a frame at 30 frames/s, and the windows reach a
+    third of its size beyond it): the full-resolution search of propose's region search in those
+    windows, its thresholds from this frame's own sample. A sign that first comes into view is
+    not found here: the caller searches the whole frame (or band) every few frames.
+    `half`: as in propose. Robust params only (`regions`); the same output as propose."""
+    params = params or ProposalParams()
+    img = _as_bgr(image_bgr)
+    H, W = img.shape[:2]
+    if H == 0 or W == 0 or not near:
+        return []
+    if not (params.separate_colors and params.regions):
+        raise ValueError("propose_near: the robust region search's params only (separate_colors, regions)")
+    small = half if half is not None and half.shape == (H // 2, W // 2, 3) else _half(img)
+    scales = _scales(img, params, sparse_hsv=cv2.cvtColor(np.ascontiguousarray(small[::SPARSE, ::SPARSE]),
+                                                          cv2.COLOR_BGR2HSV))
+    blobs = _search_around(img, params, scales, [(d.box, d.color) for d in near], (1.0, 1.0))
+    return _detections(blobs, params, W, H)

@@ -3,6 +3,12 @@
 One object per stream (the confirmation remembers recent frames, and what the classifier was
 sure is no sign: signs/not_signs.py). `step(image)` returns this frame's detections and the
 confirmed ones.
+
+With the rows where sign faces stand (a car's camera: `band`), the band is searched whole on one
+frame in `search_every` and, on the frames between, only around the frame before's proposals
+(proposals.propose_near): a sign moves a few pixels a frame, and one that comes into view is
+found at the next whole search, at most search_every - 1 frames late, far ahead of the car. The
+band's whole-row check (RowBand) frames are whole searches.
 """
 from __future__ import annotations
 
@@ -33,6 +39,8 @@ class SignStage:
         # None: every row
         self.band: RowBand | None = None
         self._check: object = None  # a frame whose band check waits for settle()
+        self._tracked: list[SignDetection] = []  # the last frame's proposals (searched around, with a band)
+        self._since_whole = config.search_every  # frames since the band was last searched whole (the first is)
 
     def step(self, image_bgr, half=None) -> tuple[tuple[SignDetection, ...], list[SignDetection]]:
         """`half`: the frame at half size (INTER_AREA), if the caller has made it (see propose)."""
@@ -42,7 +50,14 @@ class SignStage:
         rows = band.rows_for(size) if band is not None and self.classifier is not None else None
         if rows is not None and band.due:
             self._check = image_bgr  # (frames are not written to after they are read)
-        found = proposals.propose(image_bgr, self.params, half, rows)
+        tracks = rows is not None and self.params.regions and self.params.separate_colors
+        if tracks and self._since_whole + 1 < self.config.search_every and self._check is None:
+            found = proposals.propose_near(image_bgr, self._tracked, self.params, half)
+            self._since_whole += 1
+        else:
+            found = proposals.propose(image_bgr, self.params, half, rows)
+            self._since_whole = 0
+        self._tracked = found
         t1 = time.perf_counter()
         if self.classifier is not None:
             # what the classifier was sure is no sign on the frames just before is not classified again
@@ -66,6 +81,7 @@ class SignStage:
 
     def reset(self) -> None:
         self._check = None
+        self._tracked, self._since_whole = [], self.config.search_every
         self.not_signs.reset()
         self.confirmer.reset()
         self.confirmed = []
