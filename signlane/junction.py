@@ -53,6 +53,16 @@ class JunctionView:
     straight_dead: bool | None = None  # the road ahead visibly ends past the junction; None = cannot tell
 
 
+def moved_on(view: JunctionView, d_m: float) -> JunctionView:
+    """A view seen d_m metres back along the road, as from here: its openings that much nearer
+    (over the metre or less a car drives between two frames its heading barely turns)."""
+    if d_m == 0:
+        return view
+    left, right = (None if o is None else replace(o, near_m=o.near_m - d_m, far_m=o.far_m - d_m)
+                   for o in (view.left, view.right))
+    return replace(view, left=left, right=right)
+
+
 @dataclass(frozen=True)
 class JunctionParams:
     x_half_m: float = 12.0

@@ -88,7 +88,7 @@ class DriveStack:
         lane, small = ps.lanes_on(image)
         t1 = time.perf_counter()
         timing["lanes"] = (t1 - t0) * 1e3
-        view, two_lane = ps.junction_view(small, lane)
+        view, two_lane = ps.junction_view(small, lane, self.odometry.distance_m)
         t2 = time.perf_counter()
         timing["junction"] = (t2 - t1) * 1e3
         signs = self._signs(image, pose, small)
