@@ -30,7 +30,17 @@ class Boundary:
     support: int = 0  # number of points behind the fit
 
     def x_at(self, y) -> np.ndarray:
-        return np.polyval(self.coeffs, y)
+        return polyval(self.coeffs, y)
+
+
+def polyval(coeffs, x):
+    """np.polyval(coeffs, x) for a float or an array x: the same Horner steps in the same order
+    (so the same floats), without its conversions, which cost more than a quadratic's arithmetic
+    (a lane estimate evaluates a few curves a frame)."""
+    y = coeffs[0] * x + coeffs[1] if len(coeffs) > 1 else coeffs[0] + 0.0 * x
+    for c in coeffs[2:]:
+        y = y * x + c
+    return y
 
 
 def fit_boundary(points_m: np.ndarray, order: int = 2, weights: np.ndarray | None = None,
@@ -149,7 +159,7 @@ def estimate_from_fits(method: str, camera: Camera, left: Boundary | None, right
     width = float(right.x_at(0.0) - left.x_at(0.0))
     if not 0.3 * lane_width_m < width < 3.0 * lane_width_m:
         width = lane_width_m  # implausible measured width: use the nominal one for the fraction
-    offset = -float(np.polyval(centre, 0.0)) / width
+    offset = -float(polyval(centre, 0.0)) / width
     heading = -math.atan(float(centre[-2]))
     y_lo = max(0.5, min(left.y_range[0], right.y_range[0]))
     y_hi = max(left.y_range[1], right.y_range[1])
@@ -160,7 +170,7 @@ def estimate_from_fits(method: str, camera: Camera, left: Boundary | None, right
     # offset and heading at the car and the curvature 8 m ahead instead, a bend's entry (slope
     # near 0 at the car, steep 8 m on) comes out with half its bend and the car runs wide.
     ys = np.arange(y_lo, y_hi + 1e-9, POLYLINE_STEP_M)
-    path = np.column_stack([np.polyval(centre, ys), ys]) if len(ys) >= 2 else None
+    path = np.column_stack([polyval(centre, ys), ys]) if len(ys) >= 2 else None
     return LaneEstimate(method, True, offset=offset, heading=heading, curvature=curvature,
                         confidence=float(confidence), left=boundary_polyline(camera, left, y_lo, y_hi),
                         right=boundary_polyline(camera, right, y_lo, y_hi), debug_mask=debug_mask,

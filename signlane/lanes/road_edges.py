@@ -351,7 +351,8 @@ def centre_path(scan: "RoadScan", smooth_rows: int = 5) -> np.ndarray | None:
         return None
     x = 0.5 * (scan.edge_l + scan.edge_r)
     k = np.ones(smooth_rows) / smooth_rows
-    xs = np.convolve(np.pad(x, smooth_rows // 2, mode="edge"), k, mode="valid")[: len(x)]
+    r = smooth_rows // 2  # (np.pad's edge mode, without its cost)
+    xs = np.convolve(np.concatenate((np.full(r, x[0]), x, np.full(r, x[-1]))), k, mode="valid")[: len(x)]
     return np.column_stack([xs, scan.y])
 
 
