@@ -39,7 +39,7 @@ def _counting(monkeypatch, name: str) -> list[int]:
     """Count the calls `auto` makes to one of its parts (its module's `name`)."""
     calls = []
     real = getattr(auto_module, name)
-    monkeypatch.setattr(auto_module, name, lambda *a: calls.append(1) or real(*a))
+    monkeypatch.setattr(auto_module, name, lambda *a, **k: calls.append(1) or real(*a, **k))
     return calls
 
 
@@ -163,7 +163,7 @@ def test_a_road_without_a_centre_line_runs_one_method_a_frame_with_the_drive_sta
     calls = []
     for name in ("carriageway", "_paint"):
         real = getattr(auto_module, name)
-        monkeypatch.setattr(auto_module, name, lambda *a, real=real, name=name: calls.append(name) or real(*a))
+        monkeypatch.setattr(auto_module, name, lambda *a, real=real, name=name, **k: calls.append(name) or real(*a, **k))
     cam = via_camera(320, 240)
     late, now = lanes.get("auto", camera=cam, edges_after_answer=True), lanes.get("auto", camera=cam)
     both = same = read_as_lanes = 0
@@ -181,3 +181,27 @@ def test_a_road_without_a_centre_line_runs_one_method_a_frame_with_the_drive_sta
         same += (a.found, a.basis, a.offset) == (b.found, b.basis, b.offset)
     assert both <= 2  # the first frame (nothing known) and frames read as lanes whose paint is not found
     assert read_as_lanes >= 3 and same >= 125  # both readings occur; they differ only at the switches
+
+
+def test_a_kerbed_frames_drivable_mask_is_made_after_its_answer(via_frames, monkeypatch):
+    """With `edges_after_answer` the carriageway's drivable mask (an unwarp of its bird's-eye
+    road) is made by settle(): a frame shows the frame before's; once settled, the mask is the
+    one the method makes at once."""
+    from signlane.lanes import road_edges
+    unwarps = []
+    real = road_edges.drivable_mask
+    monkeypatch.setattr(auto_module, "drivable_mask", lambda *a: unwarps.append(1) or real(*a))
+    cam = via_camera(320, 240)
+    late, now = lanes.get("auto", camera=cam, edges_after_answer=True), lanes.get("auto", camera=cam)
+    before = None
+    for img in via_frames[:12]:
+        unwarps.clear()
+        a = late(img)
+        assert unwarps == []  # not on the frame's path
+        assert (a.drivable_mask is None and before is None) or np.array_equal(a.drivable_mask, before)
+        late.settle()
+        assert unwarps == [1]
+        b = now(img)
+        now.settle()
+        assert b.found and np.array_equal(late.state.drivable, b.drivable_mask) and b.drivable_mask.any()
+        before = late.state.drivable

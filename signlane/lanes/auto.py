@@ -42,7 +42,7 @@ from signlane.camera import Camera
 from signlane.lanes import register, seg_model
 from signlane.lanes.geometry import camera_for
 from signlane.lanes.road_edges import (RoadEdgesParams, RoadEdgesState, carriageway, carriageway_estimate,
-                                       right_half_estimate)
+                                       drivable_mask, right_half_estimate)
 from signlane.lanes.sliding_window import SlidingWindowParams, SlidingWindowState, sliding_window
 from signlane.onnx_model import ModelError
 from signlane.types import LaneEstimate
@@ -121,6 +121,9 @@ class AutoState:
     # command is out, or else first thing on the next frame
     pending: _Look | _Edges | None = None
     drivable: np.ndarray | None = None  # the last carriageway's road mask (a frame whose scan waits shows it)
+    # (bird's-eye view, road mask) of the last frame's carriageway, made the frame's drivable mask
+    # by settle() (edges_after_answer: the frame shows the frame before's)
+    unwarp: tuple | None = None
 
     @property
     def two_lane(self) -> bool:
@@ -129,11 +132,13 @@ class AutoState:
     def forget_tracks(self) -> "AutoState":
         pending = None if self.pending is None else replace(self.pending, forgot=True)
         return AutoState(self.road.forget_tracks(), None, self.lanes_seen, maps=self.maps, pending=pending,
-                         drivable=self.drivable)
+                         drivable=self.drivable, unwarp=self.unwarp)
 
     def settle(self, params: "AutoParams") -> "AutoState":
         """This state with the pending work made (itself when none is pending): what the work
         would have left had it been made during its frame."""
+        if self.unwarp is not None:
+            return replace(self, drivable=drivable_mask(*self.unwarp), unwarp=None).settle(params)
         work = self.pending
         if work is None:
             return self
@@ -173,7 +178,15 @@ def auto(image_bgr: np.ndarray, camera: Camera | None, params: AutoParams,
                 AutoState(state.road, paint_state, state.lanes_seen, maps=maps,
                           pending=_Edges(image_bgr, cam, maps, look=None if state.road.two_lane else est),
                           drivable=state.drivable)
-    left, right, width, road_state, mask = carriageway(image_bgr, cam, params.road, state.road, maps)
+    # with edges_after_answer the colour rules' drivable mask (an unwarp, about 0.1 ms) is made
+    # after the answer too: the frame shows the frame before's, as a frame whose scan waits does
+    later = params.edges_after_answer and maps is None
+    left, right, width, road_state, mask = carriageway(image_bgr, cam, params.road, state.road, maps,
+                                                       unwarp=not later)
+    unwarp = None
+    if later:
+        unwarp = (road_state.bev, road_state.scan.road) if left is not None or right is not None else None
+        mask = state.drivable if unwarp is not None else None
     if not road_state.two_lane:
         # no centre line on the carriageway's middle: a kerbed road (VIA's), or a wide road whose
         # lane lines divide it into lanes (a highway), told apart by whether paint bounds a lane
@@ -184,7 +197,8 @@ def auto(image_bgr: np.ndarray, camera: Camera | None, params: AutoParams,
         # paint method costs about as much as the carriageway again)
         if state.lanes_seen is not None and state.lanes_seen < params.settled_below \
                 and state.since_check + 1 < params.settled_every:
-            return whole(), AutoState(road_state, None, state.lanes_seen, state.since_check + 1, maps, drivable=mask)
+            return whole(), AutoState(road_state, None, state.lanes_seen, state.since_check + 1, maps, drivable=mask,
+                                      unwarp=unwarp)
         if state.lanes_seen is not None and painted is None and (
                 _remember(state.lanes_seen, 1.0, params.lane_memory) <= params.lanes_above
                 or (params.edges_after_answer and not read_as_lanes)):
@@ -192,23 +206,25 @@ def auto(image_bgr: np.ndarray, camera: Camera | None, params: AutoParams,
             # before read it as kerbed): its lane is the carriageway whatever the look finds, so the
             # look waits until the frame's answer is out
             return whole(), AutoState(road_state, state.paint, state.lanes_seen, maps=maps,
-                                    pending=_Look(image_bgr, cam, width, road_state.scan, state.paint), drivable=mask)
+                                      pending=_Look(image_bgr, cam, width, road_state.scan, state.paint),
+                                      drivable=mask, unwarp=unwarp)
         est, paint_state, lanes_seen = _look(image_bgr, cam, params, state.paint, maps, width, road_state.scan,
                                              state.lanes_seen, painted)
         if lanes_seen > params.lanes_above:
             if est.found:
                 return replace(est, method=NAME, basis="paint", drivable_mask=mask), \
-                    AutoState(road_state, paint_state, lanes_seen, maps=maps, drivable=mask)
-            return replace(est, method=NAME), AutoState(road_state, paint_state, lanes_seen, maps=maps, drivable=mask)
-        return whole(), AutoState(road_state, paint_state, lanes_seen, maps=maps, drivable=mask)
+                    AutoState(road_state, paint_state, lanes_seen, maps=maps, drivable=mask, unwarp=unwarp)
+            return replace(est, method=NAME), AutoState(road_state, paint_state, lanes_seen, maps=maps, drivable=mask,
+                                                        unwarp=unwarp)
+        return whole(), AutoState(road_state, paint_state, lanes_seen, maps=maps, drivable=mask, unwarp=unwarp)
     # (looked for already when the carriageway waited for paint that was not found: the same call)
     est, paint_state = painted or _paint(image_bgr, cam, params, state.paint, maps)
     if est.found:
         return replace(est, method=NAME, basis="paint", drivable_mask=mask), \
-            AutoState(road_state, paint_state, state.lanes_seen, maps=maps, drivable=mask)
+            AutoState(road_state, paint_state, state.lanes_seen, maps=maps, drivable=mask, unwarp=unwarp)
     # no paint found this frame: the right half of the carriageway
     return right_half_estimate(NAME, cam, left, right, width, mask, (h, w)), \
-        AutoState(road_state, paint_state, state.lanes_seen, maps=maps, drivable=mask)
+        AutoState(road_state, paint_state, state.lanes_seen, maps=maps, drivable=mask, unwarp=unwarp)
 
 
 def _road_maps(image_bgr: np.ndarray, params: AutoParams) -> seg_model.FrameMaps | None:

@@ -314,10 +314,11 @@ def scan_edges(road: np.ndarray, visible: np.ndarray, bev: BirdsEye, p: RoadEdge
 
 
 def carriageway(image_bgr: np.ndarray, cam: Camera, p: RoadEdgesParams, state: RoadEdgesState,
-                maps: FrameMaps | None = None):
+                maps: FrameMaps | None = None, unwarp: bool = True):
     """(left, right Boundary | None, width m, new state, road mask uint8 in the image or None).
     With a road model's `maps` of the frame, its road and paint instead of the colour rules (the
-    mask is then the model's road at the frame's size)."""
+    mask is then the model's road at the frame's size). unwarp=False: no colour-rule mask (None;
+    a caller that shows it later makes it with drivable_mask)."""
     h, w = image_bgr.shape[:2]
     bev = _bev(cam, p, state)
     visible = bev.seen
@@ -338,11 +339,14 @@ def carriageway(image_bgr: np.ndarray, cam: Camera, p: RoadEdgesParams, state: R
         lab = tuple(float(v) for v in (ref if lab is None else 0.9 * np.asarray(lab) + 0.1 * ref))
     if maps is not None:  # the model's road, found or not
         mask = maps.frame_mask(maps.road, w, h)
-    elif left is None and right is None:
-        mask = None
     else:
-        mask = bev.unwarp(road.astype(np.uint8) * 255, cv2.INTER_NEAREST)
+        mask = drivable_mask(bev, road) if unwarp and (left is not None or right is not None) else None
     return left, right, scan.width_m, RoadEdgesState(scan.width_m, memory, bev, scan, lab), mask
+
+
+def drivable_mask(bev: BirdsEye, road: np.ndarray) -> np.ndarray:
+    """A bird's-eye road mask (bool) as the frame's uint8 0/255 drivable mask."""
+    return bev.unwarp(road.view(np.uint8) * 255, cv2.INTER_NEAREST)
 
 
 def centre_path(scan: "RoadScan", smooth_rows: int = 5) -> np.ndarray | None:
