@@ -206,6 +206,23 @@ class RoadScan:
         return self.road[v0:v1, u0:u1], self.visible[v0:v1, u0:u1]
 
 
+def row_runs(mask: np.ndarray) -> tuple[list[int], list[int], list[int]]:
+    """The runs of True in each row of a bool (h, w) mask: (first columns, last columns, bounds),
+    row r's runs being indices bounds[r] to bounds[r + 1] - 1 of the first two, left to right.
+    One pass over the mask with a column of False either side of each row, flattened: changes
+    then alternate, a run's start then its end, and never cross from one row to the next."""
+    h, w = mask.shape
+    wide = w + 2
+    pad = np.zeros((h, wide), np.bool_)
+    pad[:, 1:-1] = mask
+    flat = pad.ravel()
+    change = np.flatnonzero(flat[1:] != flat[:-1])
+    starts, ends = change[0::2] + 1, change[1::2]  # the first True of a run, the last
+    rows = starts // wide
+    return ((starts - rows * wide - 1).tolist(), (ends % wide - 1).tolist(),
+            np.searchsorted(rows, np.arange(h + 1)).tolist())
+
+
 def scan_edges(road: np.ndarray, visible: np.ndarray, bev: BirdsEye, p: RoadEdgesParams,
                width_m: float) -> RoadScan:
     """Scan a bird's-eye road mask row by row from the car outwards (see RoadScan)."""
@@ -219,13 +236,7 @@ def scan_edges(road: np.ndarray, visible: np.ndarray, bev: BirdsEye, p: RoadEdge
     stop = "view"
     # every row's runs of road (first and last column, as lists) and first and last seen column,
     # in one pass each: per-row numpy calls were most of the scan's cost
-    pad = np.zeros((h, w + 2), np.int8)
-    pad[:, 1:-1] = road
-    step = np.diff(pad, axis=1)
-    run_row, run_start = np.nonzero(step == 1)
-    run_end = (np.nonzero(step == -1)[1] - 1).tolist()
-    bounds = np.searchsorted(run_row, np.arange(h + 1)).tolist()
-    run_start = run_start.tolist()
+    run_start, run_end, bounds = row_runs(road)
     # each row's seen span (made once per view when `visible` is the view's own): where every
     # row sees one span, whether a column is seen is a comparison with the span's ends
     any_seen, first_seen, last_seen, spans = bev.seen_rows if visible is bev.seen else row_spans(visible)
