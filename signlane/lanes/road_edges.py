@@ -21,6 +21,7 @@ carriageway is. The scan, the fits and everything read from the scan (junctions)
 from __future__ import annotations
 
 import bisect
+import itertools
 import math
 from dataclasses import dataclass, replace
 
@@ -29,7 +30,7 @@ import numpy as np
 
 from signlane.camera import BirdsEye, Camera, row_spans
 from signlane.lanes import register
-from signlane.lanes.geometry import Boundary, camera_for, estimate_from_fits, fit_boundary, slant
+from signlane.lanes.geometry import Boundary, camera_for, estimate_from_fits, fit_boundary
 from signlane.lanes.seg_model import FrameMaps
 from signlane.order_stats import median_rows
 from signlane.types import LaneEstimate
@@ -292,12 +293,12 @@ def scan_edges(road: np.ndarray, visible: np.ndarray, bev: BirdsEye, p: RoadEdge
             hist_l.append(left)
             if len(hist_l) >= 6:
                 slope = (hist_l[-1] - hist_l[-6]) / 5  # pixels across per row: rows and columns share a scale
-                slant_l = slant(slope)
+                slant_l = math.sqrt(1.0 + min(slope * slope, 4.0))  # geometry.slant(slope), inlined
         if ok_r:
             hist_r.append(right)
             if len(hist_r) >= 6:
                 slope = (hist_r[-1] - hist_r[-6]) / 5
-                slant_r = slant(slope)
+                slant_r = math.sqrt(1.0 + min(slope * slope, 4.0))
         across = run / (0.5 * (slant_l + slant_r))
         if ok_l and ok_r and min_w < across < max_w:
             width_m = 0.9 * width_m + 0.1 * across
@@ -316,7 +317,7 @@ def scan_edges(road: np.ndarray, visible: np.ndarray, bev: BirdsEye, p: RoadEdge
             hi = hist_r[-1] if hist_r else centre + width_m * k / 2
         centre = 0.5 * (lo + hi)
         out.append((row, left, right, ok_l, ok_r, lo, hi, first_seen[row] if seen else c, last_seen[row] if seen else c))
-    a = np.array(out, float).reshape(-1, 9)
+    a = np.fromiter(itertools.chain.from_iterable(out), float, count=9 * len(out)).reshape(-1, 9)
     x0, y1 = bev.x_range_m[0], bev.y_range_m[1]
     to_x = lambda col: x0 + (col + 0.5) / k  # noqa: E731
     return RoadScan(y1 - (a[:, 0] + 0.5) / k, to_x(a[:, 1] - 0.5), to_x(a[:, 2] + 0.5), a[:, 3] > 0, a[:, 4] > 0,
