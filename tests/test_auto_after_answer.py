@@ -205,3 +205,23 @@ def test_a_kerbed_frames_drivable_mask_is_made_after_its_answer(via_frames, monk
         now.settle()
         assert b.found and np.array_equal(late.state.drivable, b.drivable_mask) and b.drivable_mask.any()
         before = late.state.drivable
+
+
+def test_a_paint_frames_debug_mask_is_made_after_its_answer(painted_frames):
+    """With `edges_after_answer` the paint method's debug mask (its kept lines' pixels, warped to
+    the frame) is made by settle(): a frame answered from the paint shows the frame before's,
+    which is the mask the method makes at once on that frame."""
+    cam = via_camera(320, 240)
+    late, now = lanes.get("auto", camera=cam, edges_after_answer=True), lanes.get("auto", camera=cam)
+    before, shown = None, 0
+    for img in painted_frames[:20]:
+        a = late(img)
+        b = now(img)
+        now.settle()
+        if a.basis == "paint" and before is not None:
+            assert np.array_equal(a.debug_mask, before)
+            shown += 1
+        late.settle()
+        assert np.array_equal(late.state.debug, b.debug_mask) and b.debug_mask.any()
+        before = b.debug_mask
+    assert shown >= 15

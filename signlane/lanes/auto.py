@@ -124,6 +124,9 @@ class AutoState:
     # (bird's-eye view, road mask) of the last frame's carriageway, made the frame's drivable mask
     # by settle() (edges_after_answer: the frame shows the frame before's)
     unwarp: tuple | None = None
+    # edges_after_answer: the paint method's debug mask of the last frame it answered, made by
+    # settle() from its state (a frame answered from the paint shows the frame before's)
+    debug: np.ndarray | None = None
 
     @property
     def two_lane(self) -> bool:
@@ -132,13 +135,16 @@ class AutoState:
     def forget_tracks(self) -> "AutoState":
         pending = None if self.pending is None else replace(self.pending, forgot=True)
         return AutoState(self.road.forget_tracks(), None, self.lanes_seen, maps=self.maps, pending=pending,
-                         drivable=self.drivable, unwarp=self.unwarp)
+                         drivable=self.drivable, unwarp=self.unwarp, debug=self.debug)
 
     def settle(self, params: "AutoParams") -> "AutoState":
         """This state with the pending work made (itself when none is pending): what the work
         would have left had it been made during its frame."""
         if self.unwarp is not None:
             return replace(self, drivable=drivable_mask(*self.unwarp), unwarp=None).settle(params)
+        if self.paint is not None and self.paint.debug_later is not None:
+            return replace(self, debug=self.paint.debug_later(),
+                           paint=replace(self.paint, debug_later=None)).settle(params)
         work = self.pending
         if work is None:
             return self
@@ -151,8 +157,9 @@ class AutoState:
             return replace(done, lanes_seen=_seen(work.look, params, width, road.scan, self.lanes_seen), since_check=0)
         _, paint_state, lanes_seen = _look(work.image_bgr, work.camera, params, work.paint, self.maps, work.width_m,
                                            work.scan, self.lanes_seen)
-        return replace(self, paint=None if work.forgot else paint_state, lanes_seen=lanes_seen, since_check=0,
-                       pending=None)
+        # (a look's lane is never shown: its debug mask is not made)
+        return replace(self, paint=None if work.forgot else replace(paint_state, debug_later=None),
+                       lanes_seen=lanes_seen, since_check=0, pending=None)
 
 
 @register(NAME, AutoParams)
@@ -174,10 +181,10 @@ def auto(image_bgr: np.ndarray, camera: Camera | None, params: AutoParams,
         painted = _paint(image_bgr, cam, params, state.paint, maps)
         est, paint_state = painted
         if est.found:
-            return replace(est, method=NAME, basis="paint", drivable_mask=state.drivable), \
+            return replace(est, method=NAME, basis="paint", drivable_mask=state.drivable, debug_mask=state.debug), \
                 AutoState(state.road, paint_state, state.lanes_seen, maps=maps,
                           pending=_Edges(image_bgr, cam, maps, look=None if state.road.two_lane else est),
-                          drivable=state.drivable)
+                          drivable=state.drivable, debug=state.debug)
     # with edges_after_answer the colour rules' drivable mask (an unwarp, about 0.1 ms) is made
     # after the answer too: the frame shows the frame before's, as a frame whose scan waits does
     later = params.edges_after_answer and maps is None
@@ -212,7 +219,8 @@ def auto(image_bgr: np.ndarray, camera: Camera | None, params: AutoParams,
                                              state.lanes_seen, painted)
         if lanes_seen > params.lanes_above:
             if est.found:
-                return replace(est, method=NAME, basis="paint", drivable_mask=mask), \
+                return replace(est, method=NAME, basis="paint", drivable_mask=mask,
+                               debug_mask=_debug(est, state, params)), \
                     AutoState(road_state, paint_state, lanes_seen, maps=maps, drivable=mask, unwarp=unwarp)
             return replace(est, method=NAME), AutoState(road_state, paint_state, lanes_seen, maps=maps, drivable=mask,
                                                         unwarp=unwarp)
@@ -220,11 +228,16 @@ def auto(image_bgr: np.ndarray, camera: Camera | None, params: AutoParams,
     # (looked for already when the carriageway waited for paint that was not found: the same call)
     est, paint_state = painted or _paint(image_bgr, cam, params, state.paint, maps)
     if est.found:
-        return replace(est, method=NAME, basis="paint", drivable_mask=mask), \
+        return replace(est, method=NAME, basis="paint", drivable_mask=mask, debug_mask=_debug(est, state, params)), \
             AutoState(road_state, paint_state, state.lanes_seen, maps=maps, drivable=mask, unwarp=unwarp)
     # no paint found this frame: the right half of the carriageway
     return right_half_estimate(NAME, cam, left, right, width, mask, (h, w)), \
         AutoState(road_state, paint_state, state.lanes_seen, maps=maps, drivable=mask, unwarp=unwarp)
+
+
+def _debug(est: LaneEstimate, state: AutoState, params: AutoParams) -> np.ndarray | None:
+    """A paint estimate's debug mask: its own, or with edges_after_answer the frame before's."""
+    return state.debug if params.edges_after_answer else est.debug_mask
 
 
 def _road_maps(image_bgr: np.ndarray, params: AutoParams) -> seg_model.FrameMaps | None:
@@ -241,9 +254,10 @@ def _road_maps(image_bgr: np.ndarray, params: AutoParams) -> seg_model.FrameMaps
 
 def _paint(image_bgr: np.ndarray, cam: Camera, params: AutoParams, state: SlidingWindowState | None,
            maps: seg_model.FrameMaps | None) -> tuple[LaneEstimate, SlidingWindowState]:
-    """The paint method: sliding-window on the frame, or its back-end on the road model's paint."""
+    """The paint method: sliding-window on the frame, or its back-end on the road model's paint.
+    With edges_after_answer its debug mask is made by settle() (AutoState.debug)."""
     if maps is None or not params.model_paint:
-        return sliding_window(image_bgr, cam, params.paint, state)
+        return sliding_window(image_bgr, cam, params.paint, state, debug_later=params.edges_after_answer)
     from signlane.lanes.segnet import paint_lane
     return paint_lane(NAME, maps, cam, params.paint, state)
 

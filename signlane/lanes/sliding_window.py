@@ -24,6 +24,7 @@ The bird's-eye, stripe-mask, pairing and checking helpers live in `bev_marking` 
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -103,6 +104,9 @@ class SlidingWindowState:
     lane_width_m: float = DEFAULT_LANE_WIDTH_M
     tracked: bool = False
     misses: int = 0
+    # with debug_later: makes the last frame's debug mask (the kept lines' pixels in the frame),
+    # for a caller that shows it after the frame's answer
+    debug_later: Callable[[], np.ndarray] | None = None
 
 
 # --- the method -----------------------------------------------------------------------------
@@ -140,8 +144,10 @@ def _line(px: _Pixels, idx: np.ndarray, fill: float, p: SlidingWindowParams) -> 
 
 @register(NAME, SlidingWindowParams)
 def sliding_window(image_bgr: np.ndarray, camera: Camera | None, params: SlidingWindowParams,
-                   state: SlidingWindowState | None) -> tuple[LaneEstimate, SlidingWindowState]:
-    """Lane from a uint8 (H, W, 3) BGR frame; see the module docstring for the steps."""
+                   state: SlidingWindowState | None, debug_later: bool = False
+                   ) -> tuple[LaneEstimate, SlidingWindowState]:
+    """Lane from a uint8 (H, W, 3) BGR frame; see the module docstring for the steps.
+    debug_later: the estimate has no debug mask; the new state's `debug_later()` makes it."""
     image_bgr = image_bgr if image_bgr.ndim == 3 else cv2.cvtColor(image_bgr, cv2.COLOR_GRAY2BGR)
     h, w = image_bgr.shape[:2]
     state = state or SlidingWindowState(lane_width_m=params.lane_width_m)
@@ -151,42 +157,46 @@ def sliding_window(image_bgr: np.ndarray, camera: Camera | None, params: Sliding
 
     def binary_of(bev: BirdsEye, valid: np.ndarray) -> np.ndarray:
         return _binary(bev.warp(image_bgr[:, :, :3]), valid, bev, params)
-    return lanes_from_binary(NAME, binary_of, cam, params, state)
+    return lanes_from_binary(NAME, binary_of, cam, params, state, debug_later=debug_later)
 
 
 def lanes_from_binary(name: str, binary_of, cam: Camera, params: SlidingWindowParams,
-                      state: SlidingWindowState | None, debug_mask: np.ndarray | None = None
-                      ) -> tuple[LaneEstimate, SlidingWindowState]:
+                      state: SlidingWindowState | None, debug_mask: np.ndarray | None = None,
+                      debug_later: bool = False) -> tuple[LaneEstimate, SlidingWindowState]:
     """The back-end after the binary, shared with the learned `segnet`: `binary_of(bev, valid)`
     gives the uint8 0/255 lane-paint mask of a bird's-eye view (valid = where it sees ground);
     bases, windows, ego pair, checks and fits follow. `debug_mask` replaces the default one
-    (the kept lines' pixels)."""
+    (the kept lines' pixels); debug_later: none now, the new state's `debug_later()` makes it (a
+    warp of the frame's size, which only a viewer of the mask reads)."""
     state = state or SlidingWindowState(lane_width_m=params.lane_width_m)
-    want = debug_mask is None
+    want = "later" if debug_later else debug_mask is None
     lb, rb, conf, debug, tracked = _detect(binary_of, cam, params, state, params.depth_m, want)
     if lb is None and rb is None and params.retry_depth_m > params.depth_m:
         # no line near the car: look further ahead (less accurate there, better than nothing)
         lb, rb, conf, debug, tracked = _detect(binary_of, cam, params, state, params.retry_depth_m, want)
-    est = estimate_from_fits(name, cam, lb, rb, state.lane_width_m, conf, debug if want else debug_mask)
+    later = debug if want == "later" else None
+    est = estimate_from_fits(name, cam, lb, rb, state.lane_width_m, conf,
+                             None if later is not None else debug if want else debug_mask)
     if not est.found:
-        return est, _lost(state)
+        return est, _lost(state, later)
     width = state.lane_width_m
     if lb is not None and rb is not None and params.validate:
         # a measured pair steadies the width used when only one line is seen in later frames
         width = float(np.clip(0.7 * width + 0.3 * width_between(lb, rb), 0.75 * params.lane_width_m,
                               1.4 * params.lane_width_m))
-    return est, SlidingWindowState(lb, rb, width, tracked)
+    return est, SlidingWindowState(lb, rb, width, tracked, debug_later=later)
 
 
-def _lost(state: SlidingWindowState) -> SlidingWindowState:
+def _lost(state: SlidingWindowState, debug_later=None) -> SlidingWindowState:
     """After a miss: forget the fits (the next frame searches afresh), keep the lane width."""
-    return SlidingWindowState(None, None, state.lane_width_m, False, state.misses + 1)
+    return SlidingWindowState(None, None, state.lane_width_m, False, state.misses + 1, debug_later)
 
 
 def _detect(binary_of, cam: Camera, p: SlidingWindowParams, state: SlidingWindowState, depth_m: float,
-            want_debug: bool = True):
+            want_debug: bool | str = True):
     """(left, right Boundary | None, confidence, debug mask uint8 (H, W) | None, tracked) through
-    a bird's-eye view depth_m deep whose binary `binary_of(bev, valid)` makes."""
+    a bird's-eye view depth_m deep whose binary `binary_of(bev, valid)` makes; want_debug
+    "later": a function that makes the debug mask instead of the mask."""
     near = SOURCE_NEAR_ROW if p.region == "source" else 1.0
     bev = ego_birdseye(cam, p.x_half_m, depth_m, p.px_per_m, near)
     valid = visible_mask(bev)
@@ -204,12 +214,14 @@ def _detect(binary_of, cam: Camera, p: SlidingWindowParams, state: SlidingWindow
     lb, rb, conf = _boundaries(left, right, kind, p)
     if not want_debug:
         return lb, rb, conf, None, tracked
-    mask = np.zeros(binary.shape, np.uint8)
-    for line, b in ((left, lb), (right, rb)):
-        if line is not None and b is not None:
-            mask[vs[line.idx], us[line.idx]] = 255
-    debug = cv2.warpPerspective(mask, bev.bev_to_image_h(), (cam.width, cam.height), flags=cv2.INTER_NEAREST)
-    return lb, rb, conf, debug, tracked
+    kept = [line.idx for line, b in ((left, lb), (right, rb)) if line is not None and b is not None]
+
+    def debug() -> np.ndarray:
+        mask = np.zeros(binary.shape, np.uint8)
+        for idx in kept:
+            mask[vs[idx], us[idx]] = 255
+        return cv2.warpPerspective(mask, bev.bev_to_image_h(), (cam.width, cam.height), flags=cv2.INTER_NEAREST)
+    return lb, rb, conf, debug if want_debug == "later" else debug(), tracked
 
 
 def _fill_held(held: tuple, left: _Line | None, right: _Line | None, lane_width_m: float):
