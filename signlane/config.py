@@ -66,7 +66,7 @@ class SignsConfig:
     # on a car (the drive stack's face rows, signs/face_rows.py): the rows are searched whole on
     # one frame in search_every, the frames between only around the frame before's proposals
     # (tracked); 1: whole on every frame. Stills and videos (infer) search every frame whole
-    search_every: int = 3
+    search_every: int = 5
 
 
 @dataclass(frozen=True)

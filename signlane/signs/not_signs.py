@@ -50,5 +50,9 @@ class NotSigns:
         if label == "unknown" and score >= self.sure:
             self._seen.append(_Seen(proposal.box, proposal.color, 0))
 
+    def holds(self, proposal: SignDetection) -> bool:
+        """Is this proposal (of the frame just split and learned from) one remembered as no sign?"""
+        return any(s.box == proposal.box and s.color == proposal.color for s in self._seen)
+
     def reset(self) -> None:
         self._seen = []

@@ -6,9 +6,10 @@ confirmed ones.
 
 With the rows where sign faces stand (a car's camera: `band`), the band is searched whole on one
 frame in `search_every` and, on the frames between, only around the frame before's proposals
-(proposals.propose_near): a sign moves a few pixels a frame, and one that comes into view is
-found at the next whole search, at most search_every - 1 frames late, far ahead of the car. The
-band's whole-row check (RowBand) frames are whole searches.
+(proposals.propose_near) that the classifier is not sure are no sign: a sign moves a few pixels
+a frame, and one that comes into view is found at the next whole search, at most
+search_every - 1 frames late, far ahead of the car. The band's whole-row check (RowBand) frames
+are whole searches.
 """
 from __future__ import annotations
 
@@ -57,12 +58,15 @@ class SignStage:
         else:
             found = proposals.propose(image_bgr, self.params, half, rows)
             self._since_whole = 0
-        self._tracked = found
+        proposed = found
         t1 = time.perf_counter()
         if self.classifier is not None:
             # what the classifier was sure is no sign on the frames just before is not classified again
             found = self.classifier.label_detections(image_bgr, self.not_signs.split(found), self.config.min_score,
                                                      self.not_signs.learn)
+        # the next frame searches around this one's proposals, but not around those the
+        # classifier is sure are no sign (a crate, a wall: the next whole search finds them again)
+        self._tracked = [p for p in proposed if not self.not_signs.holds(p)]
         self.confirmed = self.confirmer.step(found)
         # what this frame's two parts cost (ms), for the driver's timing and the benchmarks
         self.last_ms = {"proposals": (t1 - t0) * 1e3, "classifier": (time.perf_counter() - t1) * 1e3}
