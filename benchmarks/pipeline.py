@@ -6,8 +6,9 @@ One table, medians over repeats, the same frames in the same run:
       design: conv 6 5x5, pool, conv 16 5x5, pool, dense 120-84-n, run with onnxruntime; its
       weights are untrained, which costs the same) and S1's proportional steering;
   (b) signlane's default driver path, exactly as `signlane drive` runs it (`Driver.step`: the
-      320-wide lane copy, `auto` lanes, junctions, the shipped sign classifier on full-frame
-      proposals, confirmation, odometry, the behaviour state machine);
+      320-wide lane copy, `auto` lanes, junctions, sign proposals on the face rows (whole on one
+      frame in five, around the last proposals between), the shipped sign classifier,
+      confirmation, odometry, the behaviour state machine), with the signs in step with the frame;
   (c) every lane method alone, as the driver runs it (on the 320-wide copy).
 Columns per stage (ms per frame): decode (a VIA message: JSON, base64, JPEG; for (a) as the
 tutorial does it, json + base64 + cv2.imdecode, for ours `decode_telemetry` with its checks),
@@ -191,7 +192,8 @@ def main() -> None:
     print(f"ms per 640x480 frame, 1 thread, median of {args.repeats} repeats over {args.frames} consecutive frames")
     print(table(["frames", "pipeline"] + STAGES + ["total", "x S1", "path", "path x S1", "after"], rows))
     print("after: the work the driver puts off until the frame's command is out (DriveStack.answered(): auto's "
-          "look for lane paint where one look cannot change the frame's lane), not in the frame's path")
+          "carriageway or paint method where the frames before chose the other, its drivable and debug masks, a "
+          "painted road's junction detector, the sign band's whole-row check), not in the frame's path")
 
 
 if __name__ == "__main__":
