@@ -40,7 +40,8 @@ class SignStage:
         # None: every row
         self.band: RowBand | None = None
         self._check: object = None  # a frame whose band check waits for settle()
-        self._tracked: list[SignDetection] = []  # the last frame's proposals (searched around, with a band)
+        # the last frame's proposals but those sure to be no sign: searched around, with a band
+        self._tracked: list[SignDetection] = []
         self._since_whole = config.search_every  # frames since the band was last searched whole (the first is)
 
     def step(self, image_bgr, half=None) -> tuple[tuple[SignDetection, ...], list[SignDetection]]:
