@@ -97,8 +97,8 @@ class JunctionDetector:
         p = self.p
         size = (int(2 * p.x_half_m * p.px_per_m), int((p.y_range_m[1] - p.y_range_m[0]) * p.px_per_m))
         self.bev: BirdsEye = camera.birdseye(size, (-p.x_half_m, p.x_half_m), p.y_range_m)
-        self.visible = self.bev.visible() > 0
-        self._visible8 = self.visible.astype(np.uint8) * 255
+        self.visible = self.bev.seen  # (bool; made once per view)
+        self._visible8 = self.bev.visible()  # (uint8 0/255, the same pixels)
         self.camera = camera
         self._bands: dict[tuple, tuple[np.ndarray, ...]] = {}  # image rows and columns of each edge band
         # visible bird's-eye pixels beyond outer_m to either side (fixed per camera)

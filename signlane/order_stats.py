@@ -44,4 +44,3 @@ def median_rows(values: np.ndarray) -> np.ndarray:
     if n % 2:
         return part[n // 2].astype(np.float64)
     return (part[n // 2 - 1].astype(np.float64) + part[n // 2]) / 2.0
-

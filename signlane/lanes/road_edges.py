@@ -30,7 +30,7 @@ import numpy as np
 
 from signlane.camera import BirdsEye, Camera, row_spans
 from signlane.lanes import register
-from signlane.lanes.geometry import Boundary, camera_for, estimate_from_fits, fit_boundary
+from signlane.lanes.geometry import Boundary, camera_for, estimate_from_fits, fit_boundary, slant
 from signlane.lanes.seg_model import FrameMaps
 from signlane.order_stats import median_rows
 from signlane.types import LaneEstimate
@@ -241,8 +241,8 @@ def scan_edges(road: np.ndarray, visible: np.ndarray, bev: BirdsEye, p: RoadEdge
     # each row's seen span (made once per view when `visible` is the view's own): where every
     # row sees one span, whether a column is seen is a comparison with the span's ends
     any_seen, first_seen, last_seen, spans = bev.seen_rows if visible is bev.seen else row_spans(visible)
-    # the loop runs once per row, so the parameters and the edges' helpers are inlined
-    # (_follows, _slant: each edge's slant changes only when a row adds to its history)
+    # the loop runs once per row, so the parameters and the edge test are inlined, and each
+    # edge's slant is worked out only when a row adds to its history
     jump, step_px, blind_max = p.jump_m * k, p.step_m * k, 10 * k
     min_w, max_w, near_px = p.min_width_m, p.max_width_m, int(0.6 * k)
     slant_l = slant_r = 1.0
@@ -293,12 +293,12 @@ def scan_edges(road: np.ndarray, visible: np.ndarray, bev: BirdsEye, p: RoadEdge
             hist_l.append(left)
             if len(hist_l) >= 6:
                 slope = (hist_l[-1] - hist_l[-6]) / 5  # pixels across per row: rows and columns share a scale
-                slant_l = math.sqrt(1.0 + min(slope * slope, 4.0))  # geometry.slant(slope), inlined
+                slant_l = slant(slope)
         if ok_r:
             hist_r.append(right)
             if len(hist_r) >= 6:
                 slope = (hist_r[-1] - hist_r[-6]) / 5
-                slant_r = math.sqrt(1.0 + min(slope * slope, 4.0))
+                slant_r = slant(slope)
         across = run / (0.5 * (slant_l + slant_r))
         if ok_l and ok_r and min_w < across < max_w:
             width_m = 0.9 * width_m + 0.1 * across

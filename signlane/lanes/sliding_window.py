@@ -174,9 +174,9 @@ def lanes_from_binary(name: str, binary_of, cam: Camera, params: SlidingWindowPa
     if lb is None and rb is None and params.retry_depth_m > params.depth_m:
         # no line near the car: look further ahead (less accurate there, better than nothing)
         lb, rb, conf, debug, tracked = _detect(binary_of, cam, params, state, params.retry_depth_m, want)
-    later = debug if want == "later" else None
-    est = estimate_from_fits(name, cam, lb, rb, state.lane_width_m, conf,
-                             None if later is not None else debug if want else debug_mask)
+    later = debug if debug_later else None
+    shown = None if debug_later else debug if debug_mask is None else debug_mask
+    est = estimate_from_fits(name, cam, lb, rb, state.lane_width_m, conf, shown)
     if not est.found:
         return est, _lost(state, later)
     width = state.lane_width_m

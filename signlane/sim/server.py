@@ -155,14 +155,14 @@ class _Connection:
         peer = self.ws.remote_address
         log.info("client %d connected from %s", self.cid, f"{peer[0]}:{peer[1]}" if peer else "?")
         loop = asyncio.get_running_loop()
+        ended = None  # (how the client left, why): its closing line, with the connection's latency split
         try:
             self.driver = await loop.run_in_executor(self.server.pool, self.server.make_driver)
             async for message in self.ws:
                 await self.on_message(message)
-            log.info("client %d disconnected after %d frames; %s", self.cid, self.frames, split_text(self.split()))
+            ended = ("disconnected", "")
         except ConnectionClosed as e:  # closed without a close frame, mid-message, too big, not UTF-8
-            log.info("client %d dropped after %d frames (%s); %s", self.cid, self.frames,
-                     why_closed(e, self.server.options.max_bytes * WS_SIZE_FACTOR), split_text(self.split()))
+            ended = ("dropped", f" ({why_closed(e, self.server.options.max_bytes * WS_SIZE_FACTOR)})")
         except Exception as e:  # e.g. the driver cannot be built: end this connection, not the server
             log.error("client %d: %s: %s; closing its connection", self.cid, type(e).__name__, e)
             await self.ws.close(1011, "driver error")
@@ -175,12 +175,12 @@ class _Connection:
             if self.driver is not None:
                 self.driver.close()
             self.server.errors.flush(who=f"client {self.cid}")
+            split = split_summary(self.ms)
+            if ended:
+                log.info("client %d %s after %d frames%s; %s", self.cid, ended[0], self.frames, ended[1],
+                         split_text(split))
             self.server.finished.append({"client": self.cid, "path": self.ws.request.path if self.ws.request else "",
-                                         "frames": self.frames, "driven": self.driven, **self.split()})
-
-    def split(self) -> dict[str, float]:
-        """This connection's decode / perceive / answer medians and p99s (ms) so far."""
-        return split_summary(self.ms)
+                                         "frames": self.frames, "driven": self.driven, **split})
 
     async def on_message(self, message: str | bytes) -> None:
         t_recv = time.perf_counter()
