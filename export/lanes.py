@@ -25,7 +25,8 @@ def export_lanes(ckpt: str | Path, out: str | Path, metrics: dict | None = None,
     classes = list(ROAD_CLASSES if task.hparams.get("drivable", False) else CLASSES)
     heads = {"lane_marking": [0, 1]} | ({"drivable": [2, 3]} if len(classes) == 4 else {})
     meta = make_metadata(TASK, classes, spec, info["data_hash"], metrics,
-                         {"arch": f"LaneSegNet width {task.hparams.width}", "checkpoint": ckpt.name,
+                         {"arch": f"LaneSegNet width {task.hparams.width}"
+                                  + (" scene" if task.hparams.get("scene", False) else ""), "checkpoint": ckpt.name,
                           "output": json.dumps({"size": "input", "classes": classes, "kind": "logits",
                                                 "heads": heads})})
     report = export_onnx(task.net, (1, 3, spec.height, spec.width), out, meta, tol=tol)

@@ -30,16 +30,50 @@ class SepBlock(nn.Module):
         return F.relu(y + x if self.residual else y)
 
 
-class LaneSegNet(nn.Module):
-    """3 x H x W (H, W multiples of 8) -> class logits (N, classes, H, W)."""
+class ImageContrast(nn.Module):
+    """The frame beside itself normalised by its own per-channel mean and spread: (N, 3, H, W) ->
+    (N, 6, H, W). A night, fog or glare frame and a random look's odd colours then reach the stem
+    at a daylight frame's contrast, while the raw channels keep what absolute brightness says
+    (white paint is bright). `eps` (input units: the runtime's inputs span about 4) keeps a flat
+    frame's noise from being blown up."""
 
-    def __init__(self, classes: int = 2, width: int = 16):
+    def __init__(self, eps: float = 0.05):
+        super().__init__()
+        self.eps = eps
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        centred = x - x.mean(dim=(2, 3), keepdim=True)
+        spread = (centred * centred).mean(dim=(2, 3), keepdim=True).add(self.eps ** 2).sqrt()
+        return torch.cat([x, centred / spread], 1)
+
+
+class SceneContext(nn.Module):
+    """The whole frame's average of the deepest features, mixed by a 1x1 conv and added back
+    everywhere: what this frame's road and verge look like (a random look's road may be the
+    colour another look gives its grass) reaches every pixel, not only a dilated neighbourhood."""
+
+    def __init__(self, channels: int):
+        super().__init__()
+        self.mix = nn.Sequential(nn.Conv2d(channels, channels, 1), nn.ReLU(inplace=True))
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return x + self.mix(x.mean(dim=(2, 3), keepdim=True))
+
+
+class LaneSegNet(nn.Module):
+    """3 x H x W (H, W multiples of 8) -> class logits (N, classes, H, W). `scene` adds the
+    frame-wide inputs and features (ImageContrast before the stem, SceneContext at 1/8): nets
+    trained before it have neither, and load with scene=False."""
+
+    def __init__(self, classes: int = 2, width: int = 16, scene: bool = False):
         super().__init__()
         w = width
-        self.stem = _cbr(3, w, 3, 2)  # 1/2
+        self.contrast = ImageContrast() if scene else nn.Identity()
+        self.stem = _cbr(6 if scene else 3, w, 3, 2)  # 1/2
         self.down1 = nn.Sequential(SepBlock(w, 2 * w, 2), SepBlock(2 * w, 2 * w))  # 1/4
         self.down2 = nn.Sequential(SepBlock(2 * w, 4 * w, 2), SepBlock(4 * w, 4 * w, dilation=2),
                                    SepBlock(4 * w, 4 * w, dilation=4))  # 1/8, wide receptive field
+        self.context = SceneContext(4 * w) if scene else nn.Identity()
         self.lat2 = _cbr(4 * w, 2 * w)
         self.fuse1 = SepBlock(2 * w, 2 * w)
         self.lat1 = _cbr(2 * w, w)
@@ -47,9 +81,9 @@ class LaneSegNet(nn.Module):
         self.head = nn.Sequential(nn.Conv2d(w, 4 * classes, 1), nn.PixelShuffle(2))
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        s0 = self.stem(x)
+        s0 = self.stem(self.contrast(x))
         s1 = self.down1(s0)
-        s2 = self.down2(s1)
+        s2 = self.context(self.down2(s1))
         # channels are reduced before upsampling: the 1x1 convs then run on 4x fewer pixels
         d1 = self.fuse1(F.interpolate(self.lat2(s2), scale_factor=2.0, mode="nearest") + s1)
         d0 = self.fuse0(F.interpolate(self.lat1(d1), scale_factor=2.0, mode="nearest") + s0)

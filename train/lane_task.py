@@ -5,7 +5,8 @@ no label (signlane.label_masks.IGNORE): the losses and the metrics leave them ou
 
 With drivable=True the net is a road model (signlane.lanes.seg_model.ROAD_CLASSES): logits
 channels 0-1 are the marking head, 2-3 the road-surface head, trained with plain cross-entropy on
-the drivable targets (a surface: no class weighting or Dice needed) and scored by val/drivable_iou."""
+the drivable targets (a surface: no class weighting needed), plus `drivable_dice` x its soft Dice
+(the overlap the drivable IoU scores), and scored by val/drivable_iou."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -22,8 +23,8 @@ from signlane_train.lane_net import LaneSegNet
 
 
 def dice_loss(logits: torch.Tensor, target: torch.Tensor, eps: float = 1.0) -> torch.Tensor:
-    """1 - soft Dice of the marking class over the batch's labelled pixels (target 0 or 1; 255
-    ignored). With no labelled pixel it is 0, without a gradient."""
+    """1 - soft Dice of class 1 (marking, or road surface) over the batch's labelled pixels
+    (target 0 or 1; 255 ignored). With no labelled pixel it is 0, without a gradient."""
     p = torch.softmax(logits, 1)[:, 1] * (target != IGNORE)
     t = (target == 1).float()
     inter = (p * t).sum()
@@ -42,10 +43,10 @@ def weighted_ce(logits: torch.Tensor, target: torch.Tensor, weight: torch.Tensor
 class LaneTask(L.LightningModule):
     def __init__(self, width: int = 16, lr: float = 4e-3, weight_decay: float = 1e-4, pos_weight: float = 4.0,
                  dice_weight: float = 1.0, input_size: tuple[int, int] = (160, 120), drivable: bool = False,
-                 drivable_weight: float = 0.5):
+                 drivable_weight: float = 0.5, scene: bool = False, drivable_dice: float = 0.0):
         super().__init__()
         self.save_hyperparameters()
-        self.net = channels_last(LaneSegNet(4 if drivable else 2, width))
+        self.net = channels_last(LaneSegNet(4 if drivable else 2, width, scene))
         self.val_road_iou = BinaryJaccardIndex(ignore_index=IGNORE)
         self.register_buffer("ce_weight", torch.tensor([1.0, pos_weight]), persistent=False)
         self.val_iou, self.val_f1 = BinaryJaccardIndex(ignore_index=IGNORE), BinaryF1Score(ignore_index=IGNORE)
@@ -60,7 +61,10 @@ class LaneTask(L.LightningModule):
         mark = logits[:, :2]
         loss = weighted_ce(mark, y, self.ce_weight) + self.hparams.dice_weight * dice_loss(mark, y)
         if road is not None:
-            loss = loss + self.hparams.drivable_weight * weighted_ce(logits[:, 2:4], road, self.ce_weight.new_ones(2))
+            surface = logits[:, 2:4]
+            loss = loss + self.hparams.drivable_weight * weighted_ce(surface, road, self.ce_weight.new_ones(2))
+            if self.hparams.drivable_dice:  # the score is IoU: a surface's overlap, not its pixels' mean
+                loss = loss + self.hparams.drivable_dice * dice_loss(surface, road)
         return loss
 
     @staticmethod

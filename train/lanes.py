@@ -26,7 +26,8 @@ log = logging.getLogger(__name__)
 def train_lanes(data: list[str | Path], out: str | Path, epochs: int = 15, batch_size: int = 32, lr: float = 4e-3,
                 width: int = 16, val_fraction: float = VAL_FRACTION, patience: int = 5, seed: int = 0, resume: bool = False,
                 trainer_args: dict | None = None, workers: int = 1, quiet: bool = False, pos_weight: float = 4.0,
-                eval_frames: int = 300, threads: int = 0, deterministic: bool = True) -> dict:
+                eval_frames: int = 300, threads: int = 0, deterministic: bool = True, scene: bool = True,
+                drivable_dice: float = 0.5) -> dict:
     """Train; writes checkpoints/, logs/, tensorboard/, samples/epoch_<k>.png, config.json and
     report.json (the best checkpoint's val scores).
     threads > 0 caps torch's CPU threads: on a busy machine one thread trains several times faster
@@ -42,7 +43,7 @@ def train_lanes(data: list[str | Path], out: str | Path, epochs: int = 15, batch
     dm = LaneDataModule(data, batch_size, val_fraction, DEFAULT_SPEC, workers, seed)
     dm.setup()
     task = LaneTask(width=width, lr=lr, pos_weight=pos_weight, input_size=(DEFAULT_SPEC.width, DEFAULT_SPEC.height),
-                    drivable=dm.drivable)
+                    drivable=dm.drivable, scene=scene, drivable_dice=drivable_dice)
     task.samples_dir = out / "samples"
     val = FrameDataset(dm.val_items[:8], DEFAULT_SPEC)
     task.sample_batch = (torch.stack([val[i][0] for i in range(len(val))]),
@@ -50,6 +51,7 @@ def train_lanes(data: list[str | Path], out: str | Path, epochs: int = 15, batch
     info = RunInfo(data)
     save_run_config(out, {"task": "lanes", "data": info.data, "data_hash": info.data_hash, "epochs": epochs,
                           "batch_size": batch_size, "lr": lr, "width": width, "pos_weight": pos_weight,
+                          "scene": scene, "drivable_dice": drivable_dice,
                           "val_fraction": val_fraction, "seed": seed, "deterministic": deterministic,
                           "input": [DEFAULT_SPEC.width, DEFAULT_SPEC.height],
                           "parameters": count_parameters(task.net), "train_frames": len(dm.train_items),

@@ -60,6 +60,13 @@ def _add_train_lanes(kinds, lightning_flags: bool) -> None:
     lanes.add_argument("--width", type=positive, default=16, help="channels of the stem (default 16)")
     lanes.add_argument("--pos-weight", type=float, default=4.0,
                        help="cross-entropy weight of the marking class (default 4)")
+    lanes.add_argument("--scene", action=argparse.BooleanOptionalAction, default=True,
+                       help="frame-wide inputs and features: the frame's own contrast beside it at the stem, and "
+                            "the whole frame's average features added back at 1/8 (default on; --no-scene "
+                            "builds the net of models trained before it)")
+    lanes.add_argument("--drivable-dice", type=float, default=0.5,
+                       help="weight of the road surface's soft Dice loss beside its cross-entropy (a road model "
+                            "only; default 0.5; 0 = cross-entropy alone, as before)")
     _add_fit_args(lanes, patience=5, workers=1, lightning_flags=lightning_flags)
 
 
@@ -207,7 +214,10 @@ def _run_train(args) -> int:
                                        val_fraction=opts["val_fraction"], balance=opts["balance"],
                                        schedule=opts["schedule"])
     elif args.kind == "lanes":
-        train, own = train_lanes, dict(pos_weight=opts["pos_weight"])
+        if opts["drivable_dice"] < 0:
+            raise UserError(f"--drivable-dice {opts['drivable_dice']}: must be >= 0")
+        train, own = train_lanes, dict(pos_weight=opts["pos_weight"], scene=opts["scene"],
+                                       drivable_dice=opts["drivable_dice"])
     else:
         train, own = train_signs, dict(size=opts["size"], class_weights=opts["class_weights"], augment=opts["augment"])
     opts["out"].mkdir(parents=True, exist_ok=True)
