@@ -267,6 +267,8 @@ class ScanJunctionParams:
     row_gap_m: float = 0.4  # open rows this close together are one opening
     resume_m: float = 1.0  # the edge back (or the road's end) this soon after: the opening is closed
     end_seen_m: float = 1.5  # a side road is a dead end only where ground is seen this far past its end
+    min_end_m: float = 2.5  # road ending nearer than this past the edge is a corner's fillet (VIA's: 1.6 m), not a
+    # side road's end (VIA's shortest side road, a T's branch, ends 4 m past the edge)
     bend_look_m: float = 4.0  # ... and no road goes on within this far ahead or behind its rows there
     goes_on_m: float = 9.0  # a side road seen this far past its edge (to the view's edge) goes on (a T's arm and one tile end 8 m out)
     straight_m: float = 1.5  # road on both edges this far past a junction: it goes on straight
@@ -427,7 +429,8 @@ def _dead_end(scan, group: np.ndarray, beyond: np.ndarray, view: np.ndarray, p: 
     where the verge's own ground begins. True when rows see the road end with verge beyond and no
     road goes on from there ahead of or behind the side road's rows (a bend just past the
     junction would); False when rows see it go on for `goes_on_m` or to the view's edge; None when
-    too little of it is in view to tell."""
+    too little of it is in view to tell. A row whose road ends within `min_end_m` of the edge has
+    met the corner's fillet beside the side road, not the side road's end, and tells nothing."""
     if scan.road is None or scan.lab is None:
         return None
     near = float(scan.y[group[0]])
@@ -439,7 +442,7 @@ def _dead_end(scan, group: np.ndarray, beyond: np.ndarray, view: np.ndarray, p: 
     uv = np.rint(scan.bev.ground_to_bev(np.column_stack([edge, scan.y[group]]))).astype(int)  # each row's edge pixel
     ends, on, goes_on = [], 0, 0
     for kind, reach in _row_reaches(scan, np.clip(uv[:, 0], 0, w - 1), np.clip(uv[:, 1], 0, h - 1), sgn, verge, p):
-        if kind == "end":
+        if kind == "end" and reach >= p.min_end_m:
             ends.append(reach)
         elif kind == "on":
             on += 1

@@ -59,3 +59,10 @@ def test_drivable_dice_adds_the_surface_overlap_to_the_loss():
     sure = torch.where(road == 1, 20.0, -20.0).float()
     perfect = torch.stack([-sure, sure], 1)
     assert dice_loss(perfect, road) < 1e-3
+
+
+def test_a_negative_drivable_dice_is_one_line(tmp_path, capsys):
+    from signlane.cli import main
+    assert main(["train", "lanes", str(tmp_path), "--out", str(tmp_path / "run"), "--drivable-dice", "-1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["signlane train: error: --drivable-dice -1.0: must be >= 0"] and not (tmp_path / "run").exists()
