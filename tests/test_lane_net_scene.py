@@ -1,10 +1,8 @@
 """The lane net's frame-wide parts: the frame's own contrast at the stem, the whole frame's
 features at 1/8, the road surface's Dice term, and nets trained before them still loading."""
-import pytest
 import torch
 
-torch_nn = pytest.importorskip("signlane_train.lane_net")
-from signlane_train.lane_net import ImageContrast, LaneSegNet, SceneContext  # noqa: E402
+from signlane_train.lane_net import ImageContrast, LaneSegNet, SceneContext
 
 
 def test_contrast_channels_ignore_a_frames_exposure_and_keep_the_raw_ones():

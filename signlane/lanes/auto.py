@@ -181,7 +181,8 @@ def auto(image_bgr: np.ndarray, camera: Camera | None, params: AutoParams,
         painted = _paint(image_bgr, cam, params, state.paint, maps)
         est, paint_state = painted
         if est.found:
-            return replace(est, method=NAME, basis="paint", drivable_mask=state.drivable, debug_mask=state.debug), \
+            return replace(est, method=NAME, basis="paint", drivable_mask=state.drivable,
+                           debug_mask=_debug(est, state, params)), \
                 AutoState(state.road, paint_state, state.lanes_seen, maps=maps,
                           pending=_Edges(image_bgr, cam, maps, look=None if state.road.two_lane else est),
                           drivable=state.drivable, debug=state.debug)
