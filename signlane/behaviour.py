@@ -23,7 +23,7 @@ import numpy as np
 from signlane.control import PurePursuit, path_bend_towards, path_curvature
 from signlane.junction import JunctionView, Opening
 from signlane.odometry import OdoPose
-from signlane.road_heading import RoadHeading
+from signlane.road_heading import LaneLateral, RoadHeading
 from signlane.types import LaneEstimate
 
 TURN_SIGNS = {"left", "right", "straight", "no_left", "no_right"}
@@ -70,6 +70,12 @@ class BehaviourParams:
     # (1/m; a 25 m circle): a bend (its outer side looks like road ending, its inner like an
     # opening), left to the lane follower. The lane at a junction runs straight up to it
     bend_not_junction: float = 0.04
+    # straight on past a lone opening on the inside of a painted bend at least this sharp (1/m; an
+    # 83 m circle): keep following the lane, as on a kerbed carriageway, not a path laid straight
+    # along the car. A gentle bend's inside reads as an opening to the painted detector (its
+    # bands run straight ahead), and a straight path there leaves the lane (random looks, traced:
+    # 2 m off over 12 m of a 50 m bend)
+    bend_straight_on: float = 0.012
     handover_offset: float = 0.5  # out of a kerbed turn's arc, the lane takes over when the car is this near its middle (lane widths)
     handover_offset_painted: float = 0.25  # ... out of a painted one, when the car is at most this far right of the lane's middle
 
@@ -100,6 +106,7 @@ class Behaviour:
         self.signs: list[SignMemory] = []
         self.path: np.ndarray | None = None  # junction path, odometry frame
         self.road_heading = RoadHeading()  # the road's direction over the last metres, for laying paths
+        self.lane_lateral = LaneLateral()  # ... and the lane's place beside the car, where they start
         self._arc_end: np.ndarray | None = None  # where a turn's arc (a crossing: its far side) ends on it
         self._seen_path: np.ndarray | None = None  # the lane's centre line last traced, odometry frame
         self.turn = ""
@@ -161,6 +168,7 @@ class Behaviour:
         self._remember_dead_ends(None if junction is not None and self._bend_view(junction, lane) else junction, odo_m)
         if self.path is None:
             self.road_heading.add(odo_m, pose.heading, lane)
+            self.lane_lateral.add(odo_m, lane)
         if junction is not None and self._reconsider(pose, odo_m, junction):
             self.path, self.cooldown_until_m = None, -1.0  # plan this junction again, with what is known now
         if self.path is None and junction is not None and odo_m > self.cooldown_until_m:
@@ -270,16 +278,16 @@ class Behaviour:
                 and -self.p.instruction_range_m < self._ahead(pose, m) < far_m + self.p.sign_slack_m]
         return max(live, key=lambda m: self._ahead(pose, m), default=None)
 
-    def _bends_towards(self, lane: LaneEstimate, way: str) -> bool:
+    def _bends_towards(self, lane: LaneEstimate, way: str, sharper_than: float | None = None) -> bool:
         """Does the lane bend towards `way` ("left"/"right") as sharply as a bend, not a road
-        running straight up to a junction (bend_not_junction)?"""
+        running straight up to a junction (bend_not_junction, or `sharper_than`)?"""
         if not lane.found or way not in ("left", "right"):
             return False
         towards = 1.0 if way == "right" else -1.0
         # (the traced line's bend as the car would steer to it, or the lane's own fitted
         # curvature: off the lane's middle in an S the first reads the bend short)
         bend = max(path_bend_towards(lane.path_m, self.p.curve_preview_m, towards), towards * lane.curvature)
-        return bend > self.p.bend_not_junction
+        return bend > (self.p.bend_not_junction if sharper_than is None else sharper_than)
 
     def _bend_view(self, j: JunctionView, lane: LaneEstimate) -> bool:
         """A view of a bend, not a junction: one opening, the road not going on straight, and the
@@ -372,6 +380,11 @@ class Behaviour:
         y_c = float(np.mean([o.centre_m for o in side]))
         far = max(o.far_m for o in side)
         sign = self._instruction(pose, far)
+        if sign is not None and near > self.p.commit_late_m and not _sign_fits(exits, sign.label):
+            # the sign's way is not among the ways seen, or it bans the only one: the junction is
+            # misread (a random look, traced: a T's left arm unseen on the frame its right arm
+            # came near, and a "no right" T taken right). Read it again on the next frames
+            return False
         self.turn = self.choose(exits, sign.label if sign else None)
         if sign is not None:
             sign.done = True
@@ -381,12 +394,17 @@ class Behaviour:
         self._plan = {"odo_m": odo_m, "until_m": odo_m + max(near - self.p.replan_margin_m, 0.0), "far_m": far,
                       "sign": sign.label if sign else None, "memory": sign, "turn": self.turn,
                       "dead_at_plan": bool(self._dead.get(self.turn))}
-        if self.turn == "straight" and not self.two_lane:
+        inside = [name for name, o in (("left", j.left), ("right", j.right)) if o is not None and o.closed]
+        if self.turn == "straight" and (not self.two_lane or (
+                len(inside) == 1 and self._bends_towards(lane, inside[0], self.p.bend_straight_on))):
             # a kerbed carriageway's edges carry on across a junction (the far edge stands in
-            # for the open one): keep following it, and judge no junction until past this one
+            # for the open one), as a painted bend's lane does past a lone opening on its inside:
+            # keep following it, and judge no junction until past this one
             self.cooldown_until_m = odo_m + far + 1.0
             return False
-        lateral = -lane.offset * (lane.lane_width_m or self.p.lane_width_m) if lane.found else 0.0
+        lateral = self.lane_lateral.lateral_m(odo_m)
+        if lateral is None:
+            lateral = -lane.offset * (lane.lane_width_m or self.p.lane_width_m) if lane.found else 0.0
         path = _junction_path(self.turn, y_c, lateral, self.p, self.two_lane)
         if heading is not None:
             path = _rotate(path, heading)
@@ -430,6 +448,15 @@ class Behaviour:
 
 _PATH_STEP_M = 0.25  # junction paths are sampled this often
 _TAIL_X = np.arange(_PATH_STEP_M, 12.0, _PATH_STEP_M)  # a turn's straight tail out of its arc, metres
+
+
+def _sign_fits(exits: set[str], label: str) -> bool:
+    """Can a turn sign be obeyed at a junction with these exits: its way among them, or a way
+    other than the one it bans?"""
+    if label in ("left", "right", "straight"):
+        return label in exits
+    banned = {"no_left": "left", "no_right": "right"}.get(label)
+    return banned is None or bool(exits - {banned})
 
 
 def _along_road(o: Opening, heading: float | None) -> Opening:

@@ -194,6 +194,27 @@ def test_a_lone_opening_the_lane_bends_toward_is_a_bend_not_a_forced_turn():
     assert _approach(Behaviour(), mirrored, 10.0) == "junction-right"  # bending away: still the junction
 
 
+def test_straight_on_past_an_opening_inside_a_gentle_painted_bend_follows_the_lane():
+    # A 50 m left bend on a random look: its inside read as a left opening (the painted
+    # detector's bands run straight ahead), the road on as straight on; the car planned the
+    # crossing straight, followed a path laid straight along itself, and left its lane 2 m
+    # wide of the bend. Past a real crossing on a straight road the path stays.
+    ys = np.arange(3.5, 14.0, 0.5)
+    straight = LaneEstimate("test", True, lane_width_m=3.2, path_m=np.column_stack([np.zeros_like(ys), ys]))
+    bending = LaneEstimate("test", True, curvature=-1 / 50, lane_width_m=3.2,
+                           path_m=np.column_stack([-ys ** 2 / 100.0, ys]))
+    for lane, planned in ((straight, True), (bending, False)):
+        b = Behaviour()
+        states = []
+        for i in range(4):
+            n = 11.0 - 0.5 * i
+            view = JunctionView(Opening(n, n + 5.0, True, dead=False), None, True, straight_dead=False)
+            states.append(b.step(0.1 * i, OdoPose(0.0, 0.5 * i), 0.5 * i, 4.0, lane, view)[2])
+        assert [d["turn"] for d in b.decisions] == ["straight"]
+        assert (states[-1] == "junction-straight") == planned
+        assert (b.path is not None) == planned
+
+
 def test_a_lone_opening_in_a_bend_is_a_bend_even_off_the_lanes_middle():
     # Left of the lane's middle in an S (1.0 m on seed 0's painted track), the line traced
     # ahead in an 18 m right bend reads short of the bend as the car would steer to it: taken
@@ -218,23 +239,46 @@ def test_a_bend_beyond_the_end_of_a_lane_shift_is_still_a_bend():
     assert _approach(Behaviour(), s_bend, 10.0) != "junction-right"
 
 
-def test_a_turn_sign_whose_exit_comes_into_view_after_the_plan_is_obeyed():
-    # A crossroads whose right arm shows a few frames after the left one: planned with the left
-    # and straight exits only, the right sign could not be obeyed; once the right arm is seen
-    # (the car still short of the junction) the plan is made again, and the sign still holds.
+@pytest.mark.parametrize("first_near", [11.0, 7.0])
+def test_a_turn_sign_whose_exit_comes_into_view_late_is_obeyed(first_near):
+    # A crossroads whose right arm shows a few frames after the left one, with a "right" sign.
+    # Still far from it (11 m), the junction is not planned until the right arm is seen: the
+    # sign says a way is there. Planned once it is close (within commit_late_m) with the left and
+    # straight exits only, the sign could not be obeyed; once the right arm is seen (the car
+    # still short of the junction) the plan is made again, and the sign still holds.
     ys = np.arange(3.5, 12.0, 0.5)
     lane = LaneEstimate("test", True, lane_width_m=4.0, path_m=np.column_stack([np.zeros_like(ys), ys]))
     b = Behaviour()
-    b.observe_signs([("right", np.array([3.0, 9.0]))])
+    b.observe_signs([("right", np.array([3.0, first_near - 2.0]))])
     states = []
     for i in range(6):
-        n = 11.0 - 0.5 * i
+        n = first_near - 0.5 * i
         right = Opening(n, n + 4.0, True, dead=False) if i >= 3 else None
         view = JunctionView(Opening(n, n + 4.0, True, dead=False), right, True, straight_dead=False)
         states.append(b.step(0.1 * i, OdoPose(0.0, 0.5 * i), 0.5 * i, 4.0, lane, view, two_lane=False)[2])
-    assert [d["turn"] for d in b.decisions] == ["straight", "right"]
-    assert [d["sign"] for d in b.decisions] == ["right", "right"]
+    expect = ["right"] if first_near - 1.0 > BehaviourParams().commit_late_m else ["straight", "right"]
+    assert [d["turn"] for d in b.decisions] == expect
+    assert all(d["sign"] == "right" for d in b.decisions)
     assert states[-1] == "junction-right"
+
+
+def test_a_no_turn_sign_at_a_junction_read_with_only_the_banned_way_waits_for_a_better_look():
+    # A T reached along its stem under a "no right" sign, on a random look: on the frame its
+    # right arm came near, its left arm was unseen and straight on read dead, and the only exit
+    # was the banned one: the car turned right. Far from the junction, it now reads it again
+    # on the next frames, and turns left once the left arm shows.
+    ys = np.arange(3.5, 12.0, 0.5)
+    lane = LaneEstimate("test", True, lane_width_m=3.2, path_m=np.column_stack([np.zeros_like(ys), ys]))
+    b = Behaviour()
+    b.observe_signs([("no_right", np.array([2.5, 9.0]))])
+    states = []
+    for i in range(4):
+        n = 10.0 - 0.5 * i
+        left = Opening(n, n + 4.0, True, dead=False) if i >= 2 else None
+        view = JunctionView(left, Opening(n, n + 4.0, True, dead=False), False, straight_dead=True)
+        states.append(b.step(0.1 * i, OdoPose(0.0, 0.5 * i), 0.5 * i, 4.0, lane, view)[2])
+    assert [d["turn"] for d in b.decisions] == ["left"]
+    assert states[2:] == ["junction-left", "junction-left"] and not any(s.startswith("junction") for s in states[:2])
 
 
 def test_a_lane_lost_in_a_bend_is_followed_along_the_line_last_traced():

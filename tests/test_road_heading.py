@@ -3,7 +3,7 @@ import math
 
 import numpy as np
 
-from signlane.road_heading import RoadHeading
+from signlane.road_heading import LaneLateral, RoadHeading
 from signlane.types import LaneEstimate
 
 
@@ -71,3 +71,17 @@ def test_a_road_that_turned_inside_the_window_has_no_one_direction():
     for i in range(25):
         rh.add(0.12 * i, 0.0, _lane(math.radians(6.0 + 0.3 * math.sin(i)) if i < 24 else math.radians(-2.3)))
     assert abs(math.degrees(rh.car_heading(3.0, 0.0)) - 6.0) < 0.4
+
+
+def test_a_misread_last_frame_does_not_move_where_a_junction_path_starts():
+    # the lane's centre 0.1 m left of the car, read frame after frame; on the last frame (the
+    # junction's mouth, a random look in shadow) a 2.2 m "lane" puts it 1.2 m right
+    ll = LaneLateral()
+    for i in range(12):
+        ll.add(0.15 * i, LaneEstimate("test", True, offset=0.1 / 3.2, lane_width_m=3.2))
+    ll.add(1.8, LaneEstimate("test", True, offset=-1.2 / 2.2, lane_width_m=2.2))
+    assert abs(ll.lateral_m(1.8) + 0.1) < 1e-6
+    # frames left behind the window no longer count; too few recent ones say nothing
+    assert ll.lateral_m(1.8 + 3.0) is None
+    ll.add(10.0, LaneEstimate("test", False))
+    assert ll.lateral_m(10.0) is None

@@ -4,7 +4,8 @@ Every frame `road-edges` finds the carriageway and keeps a running measure of wh
 line is painted along its middle. On a kerbed carriageway with no centre line (VIA's road) the
 lane is the carriageway and the car keeps its middle. On a two-lane road with a centre line the
 lane is the right one, from the paint (`sliding-window`), or, where the paint is not found, the
-right half of the carriageway. A wide road without a centre line whose lane lines divide it
+right half of the carriageway; paint whose lane does not lie in the carriageway's right half
+(the oncoming lane, taken where the right edge line is worn away) is not found. A wide road without a centre line whose lane lines divide it
 (a highway) is told from a kerbed one by the paint method finding, frame after frame, a lane
 clearly narrower than the carriageway: then the lane is that one. `LaneEstimate.basis` says which
 ("edges" or "paint"). Where one look for lane paint cannot make a kerbed road a lane road on
@@ -72,6 +73,14 @@ class AutoParams:
     # "" = colour rules (no model)
     threads: int = 1  # the road model's onnxruntime threads
     model_paint: bool = False  # lanes fitted to the model's paint (else to sliding-window's own binary)
+    # on a two-lane road the paint's lane is the car's (the right one) only where its centre lies
+    # right of the carriageway's middle by at least this share of the carriageway's width (the
+    # right lane's centre is about a quarter of the width right of the middle: halfway there),
+    # measured over keep_right_m of the carriageway from its nearest row with both edges seen,
+    # that row no further than keep_right_from_m ahead
+    keep_right_share: float = 0.125
+    keep_right_m: float = 5.0
+    keep_right_from_m: float = 10.0
     # on a road with a centre line, the carriageway of a frame whose paint is found is scanned
     # after the frame's answer (AutoState.settle): its lane is the paint's either way; on a road
     # without one, a frame runs the method the frames before chose (lanes: the paint first; kerbed:
@@ -180,7 +189,7 @@ def auto(image_bgr: np.ndarray, camera: Camera | None, params: AutoParams,
         # its trace for junctions, the share of lane sightings) can wait for the answer
         painted = _paint(image_bgr, cam, params, state.paint, maps)
         est, paint_state = painted
-        if est.found:
+        if est.found and (not state.road.two_lane or _keeps_right(est, state.road.scan, params)):
             return replace(est, method=NAME, basis="paint", drivable_mask=state.drivable,
                            debug_mask=_debug(est, state, params)), \
                 AutoState(state.road, paint_state, state.lanes_seen, maps=maps,
@@ -228,6 +237,10 @@ def auto(image_bgr: np.ndarray, camera: Camera | None, params: AutoParams,
         return whole(), AutoState(road_state, paint_state, lanes_seen, maps=maps, drivable=mask, unwarp=unwarp)
     # (looked for already when the carriageway waited for paint that was not found: the same call)
     est, paint_state = painted or _paint(image_bgr, cam, params, state.paint, maps)
+    if est.found and not _keeps_right(est, road_state.scan, params):
+        # the paint bounds the oncoming lane (or straddles the centre line): the right half of the
+        # carriageway instead, and the paint method searches afresh on the next frame
+        est, paint_state = replace(est, found=False), None
     if est.found:
         return replace(est, method=NAME, basis="paint", drivable_mask=mask, debug_mask=_debug(est, state, params)), \
             AutoState(road_state, paint_state, state.lanes_seen, maps=maps, drivable=mask, unwarp=unwarp)
@@ -279,6 +292,30 @@ def _seen(est: LaneEstimate, params: AutoParams, width: float, scan, lanes_seen:
     inside = est.found and est.confidence >= params.lane_confidence and width > 0 \
         and est.lane_width_m < params.lane_share * width and _road_beside(est, scan, params)
     return _remember(lanes_seen, float(inside), params.lane_memory)
+
+
+def _keeps_right(est: LaneEstimate, scan, params: AutoParams) -> bool:
+    """Does a paint estimate's lane lie in the right half of a two-lane carriageway (`scan`, its
+    RoadScan: this frame's, or with edges_after_answer the frame before's)? True where the scan
+    cannot tell (too few near rows with both edges seen). On a look whose edge line is worn away,
+    the paint method can take the far edge line and the centre line for the car's lane lines."""
+    if scan is None or len(scan.y) == 0 or est.path_m is None or len(est.path_m) < 2:
+        return True
+    both = np.flatnonzero(scan.ok_l & scan.ok_r)
+    # (a wide road's far edge comes into view some metres ahead: the rows from there on)
+    if len(both) == 0 or scan.y[both[0]] > params.keep_right_from_m:
+        return True
+    near = both[scan.y[both] <= scan.y[both[0]] + params.keep_right_m]
+    near = near[(scan.y[near] >= est.path_m[0, 1]) & (scan.y[near] <= est.path_m[-1, 1])]  # where the paint lane was traced
+    if len(near) < params.road.min_rows:
+        return True
+    mid = 0.5 * (scan.run_l[near] + scan.run_r[near])
+    width = float(np.median(scan.run_r[near] - scan.run_l[near]))
+    if not params.road.min_width_m < width < params.road.max_width_m:
+        return True
+    ys = scan.y[near]
+    centre = np.interp(ys, est.path_m[:, 1], est.path_m[:, 0])  # the paint lane's centre on those rows
+    return float(np.median(centre - mid)) >= params.keep_right_share * width
 
 
 def road_state(state) -> RoadEdgesState | None:

@@ -12,6 +12,9 @@ the lane is the whole carriageway and `offset` is from its middle.
 
 The state carries the measured width and how much of the carriageway's middle has looked like a
 painted line (averaged over frames): `centre_paint` above `paint_share` means a two-lane road.
+A road that has shown its centre line stays a two-lane road while it stays two lanes wide
+(`two_lanes_m`), even where the line fades from view (worn paint, shadow, glare, a look the
+rules do not know): its lane is still the right half, not the whole carriageway.
 
 Given a road model's maps of the frame (`seg_model.FrameMaps`: `--set lanes.model=FILE`), the
 road and the paint are the model's, warped into the same view, instead of the colour rules:
@@ -59,6 +62,9 @@ class RoadEdgesParams:
     paint_band_m: float = 0.35  # the middle band looked at for a painted centre line
     paint_share: float = 0.12  # share of middle-band rows with paint that makes a two-lane road
     paint_memory: float = 0.9  # weight of the past in the centre-paint average
+    # a two-lane road stays one, its centre line seen or not, while it is at least this wide: two
+    # of the narrowest lanes (2.75 m); VIA's kerbed carriageway is 4 m (3.6-4.4 in its look-alikes)
+    two_lanes_m: float = 5.5
 
     @classmethod
     def published(cls) -> "RoadEdgesParams":
@@ -72,10 +78,12 @@ class RoadEdgesState:
     bev: BirdsEye | None = None
     scan: "RoadScan | None" = None  # the last frame's scan (junctions are read from it)
     road_lab: tuple[float, float, float] | None = None  # the road's colour, averaged over frames
+    # the road showed a centre line and has been two lanes wide (two_lanes_m) ever since
+    held: bool = False
 
     @property
     def two_lane(self) -> bool:
-        return self.centre_paint is not None and self.centre_paint > RoadEdgesParams.paint_share
+        return self.held or (self.centre_paint is not None and self.centre_paint > RoadEdgesParams.paint_share)
 
     def forget_tracks(self) -> "RoadEdgesState":
         """What outlives a break in following (a junction crossed on a planned path): the road's
@@ -347,13 +355,15 @@ def carriageway(image_bgr: np.ndarray, cam: Camera, p: RoadEdgesParams, state: R
     memory, lab = state.centre_paint, state.road_lab
     if paint is not None:  # only a well-seen carriageway says whether it has a centre line
         memory = paint if memory is None else p.paint_memory * memory + (1 - p.paint_memory) * paint
+    held = state.held
     if good:
         lab = tuple(float(v) for v in (ref if lab is None else 0.9 * np.asarray(lab) + 0.1 * ref))
+        held = scan.width_m >= p.two_lanes_m and (state.two_lane or (memory is not None and memory > p.paint_share))
     if maps is not None:  # the model's road, found or not
         mask = maps.frame_mask(maps.road, w, h)
     else:
         mask = drivable_mask(bev, road) if unwarp and (left is not None or right is not None) else None
-    return left, right, scan.width_m, RoadEdgesState(scan.width_m, memory, bev, scan, lab), mask
+    return left, right, scan.width_m, RoadEdgesState(scan.width_m, memory, bev, scan, lab, held), mask
 
 
 def drivable_mask(bev: BirdsEye, road: np.ndarray) -> np.ndarray:

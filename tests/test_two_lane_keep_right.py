@@ -1,0 +1,86 @@
+"""On a two-lane road the car keeps to the right lane when the look hides the road's paint:
+a road that has shown its centre line stays a two-lane road while it stays two lanes wide
+(road_edges: RoadEdgesState.held), and a paint lane left of the carriageway's middle is the
+oncoming lane, not the car's (auto: _keeps_right). Traced on random looks, where a worn centre
+line made the car steer to the carriageway's middle, and a worn right edge line let the paint
+method take the far edge line and the centre line for the car's lane lines."""
+from dataclasses import replace
+
+import numpy as np
+
+from signlane.camera import Camera
+from signlane.lanes.auto import AutoParams, _keeps_right
+from signlane.lanes.road_edges import RoadEdgesParams, RoadEdgesState, carriageway, road_edges_bev
+from signlane.types import LaneEstimate
+
+P = RoadEdgesParams()
+CAM = Camera().with_size(320, 240)
+
+
+def _frame(left_m: float, right_m: float, centre_m: float | None, phase_m: float = 0.0) -> np.ndarray:
+    """A camera frame of a straight grey road between ground x = left_m and right_m (metres, +
+    right of the car) on brown verge, with a dashed white centre line at centre_m (3 m dashes,
+    4 m gaps, shifted by phase_m as the car drives on) or none."""
+    bev = road_edges_bev(CAM, P, RoadEdgesState())
+    w, h = bev.size
+    img = np.zeros((h, w, 3), np.uint8)
+    img[:] = (60, 110, 150)
+    col = lambda x: int(round((x - bev.x_range_m[0]) * P.px_per_m))  # noqa: E731
+    img[:, col(left_m):col(right_m)] = (110, 110, 110)
+    if centre_m is not None:
+        for v in range(h):
+            y = bev.y_range_m[1] - (v + 0.5) / P.px_per_m + phase_m
+            if y % 7.0 < 3.0:
+                img[v, col(centre_m) - 1:col(centre_m) + 1] = (235, 235, 235)
+    return bev.unwarp(img, 0)
+
+
+def _drive(frames, state=None, params=P):
+    state = state or RoadEdgesState()
+    kinds = []
+    for img in frames:
+        *_, state, _ = carriageway(img, CAM, params, state)
+        kinds.append(state.two_lane)
+    return kinds, state
+
+
+# a painted two-lane road 7.4 m wide, the car in the middle of its right lane
+PAINTED = dict(left_m=-5.3, right_m=2.1)
+
+
+def test_a_two_lane_road_whose_centre_line_fades_stays_two_lane_while_it_is_two_lanes_wide():
+    seen, state = _drive([_frame(**PAINTED, centre_m=-1.6, phase_m=0.2 * i) for i in range(20)])
+    assert seen[-1] and state.held
+    faded = [_frame(**PAINTED, centre_m=None) for _ in range(40)]
+    kinds, _ = _drive(faded, state)
+    assert all(kinds)
+    # without the hold the road turns kerbed within a second (the car would steer to its middle)
+    kinds, _ = _drive(faded, replace(state, held=False), replace(P, two_lanes_m=99.0))
+    assert not kinds[-1]
+    # a road narrowed to a kerbed carriageway's 4 m without a centre line is kerbed again
+    kinds, state = _drive([_frame(-2.0, 2.0, None) for _ in range(40)], state)
+    assert not kinds[-1] and not state.held
+
+
+def test_a_wide_road_never_seen_with_a_centre_line_is_not_held_two_lane():
+    kinds, state = _drive([_frame(**PAINTED, centre_m=None) for _ in range(30)])
+    assert not any(kinds) and not state.held
+
+
+def _lane_at(centre_x: float) -> LaneEstimate:
+    ys = np.arange(2.0, 12.0, 0.5)
+    return LaneEstimate("test", True, offset=-centre_x / 3.2, lane_width_m=3.2,
+                        path_m=np.column_stack([np.full_like(ys, centre_x), ys]))
+
+
+def test_the_paint_lane_is_the_cars_only_in_the_right_half_of_the_carriageway():
+    params = AutoParams()
+    for car_m in (0.0, 0.8, -0.8):  # the car in its lane's middle, or 0.8 m left or right of it
+        _, state = _drive([_frame(PAINTED["left_m"] - car_m, PAINTED["right_m"] - car_m, -1.6 - car_m, 0.2 * i)
+                           for i in range(5)])
+        scan = state.scan
+        assert _keeps_right(_lane_at(-car_m), scan, params)  # the right lane: its centre 1.6 m right of the middle
+        assert not _keeps_right(_lane_at(-car_m - 3.2), scan, params)  # the oncoming lane
+        assert not _keeps_right(_lane_at(-car_m - 1.6), scan, params)  # a "lane" astride the centre line
+        # where the carriageway was not seen, it cannot tell: the paint stands
+        assert _keeps_right(_lane_at(-car_m - 3.2), None, params)
