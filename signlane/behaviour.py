@@ -345,13 +345,22 @@ class Behaviour:
         if plan["sign"] in ("left", "right", "straight") and plan["turn"] != plan["sign"]:
             exits = self._exits(j)
             if exits is not None and plan["sign"] in exits:
-                sign = plan["memory"]
-                sign.done = False  # the sign is for this junction still
-                if all(m is not sign for m in self.signs):
-                    self.signs.append(sign)  # (dropped once it was dealt with and passed)
+                self._sign_again(plan)
                 return True
         # (a turn planned as the least dead of ways all judged dead is not news when judged so again)
-        return bool(self._dead.get(plan["turn"])) and not plan["dead_at_plan"]
+        if self._dead.get(plan["turn"]) and not plan["dead_at_plan"]:
+            self._sign_again(plan)  # (planned again without it, a "no right" T's left arm judged dead went right)
+            return True
+        return False
+
+    def _sign_again(self, plan: dict) -> None:
+        """The sign a plan used is for the same junction when it is planned again."""
+        sign = plan["memory"]
+        if sign is None:
+            return
+        sign.done = False
+        if all(m is not sign for m in self.signs):
+            self.signs.append(sign)  # (dropped once it was dealt with and passed)
 
     def _plan_junction(self, pose: OdoPose, lane: LaneEstimate, j: JunctionView, odo_m: float = 0.0) -> bool:
         exits = self._exits(j)
@@ -380,11 +389,17 @@ class Behaviour:
         y_c = float(np.mean([o.centre_m for o in side]))
         far = max(o.far_m for o in side)
         sign = self._instruction(pose, far)
-        if sign is not None and near > self.p.commit_late_m and not _sign_fits(exits, sign.label):
+        if sign is not None and not _sign_fits(exits, sign.label):
             # the sign's way is not among the ways seen, or it bans the only one: the junction is
             # misread (a random look, traced: a T's left arm unseen on the frame its right arm
-            # came near, and a "no right" T taken right). Read it again on the next frames
-            return False
+            # came near, and a "no right" T taken right). Read it again on the next frames ...
+            if near > self.p.commit_late_m:
+                return False
+            # ... and once near, a way seen but judged dead that obeys the sign is taken: the sign
+            # says it is there (random looks: a "no right" T whose left arm read dead, taken right)
+            seen = {name for name, o in (("left", j.left), ("right", j.right)) if o is not None and o.closed}
+            obeying = {w for w in seen | ({"straight"} if j.straight else set()) if _sign_fits({w}, sign.label)}
+            exits = obeying or exits
         self.turn = self.choose(exits, sign.label if sign else None)
         if sign is not None:
             sign.done = True

@@ -194,6 +194,29 @@ def test_a_lone_opening_the_lane_bends_toward_is_a_bend_not_a_forced_turn():
     assert _approach(Behaviour(), mirrored, 10.0) == "junction-right"  # bending away: still the junction
 
 
+def test_near_a_junction_a_way_judged_dead_is_taken_when_the_sign_leaves_no_other():
+    # A "no right" T reached along its stem on a random look (VIA's style, seed 13 and via_town):
+    # its left arm read dead on every frame, so the only exit was the banned right; the car
+    # turned right. The sign says the left arm is there: close to the junction it is taken.
+    ys = np.arange(3.5, 12.0, 0.5)
+    lane = LaneEstimate("test", True, lane_width_m=4.0, path_m=np.column_stack([np.zeros_like(ys), ys]))
+    for first_near, dead_from in ((13.0, 0), (9.0, 1)):
+        # judged dead from afar (planned only once near), or only after a plan made while it read open
+        # (planned again once it reads dead: with the sign still, which the first plan had used up)
+        b = Behaviour()
+        b.observe_signs([("no_right", np.array([2.5, first_near - 2.0]))])
+        states = []
+        for i in range(int((first_near - 5.5) / 0.5) + 1):
+            n = first_near - 0.5 * i
+            view = JunctionView(Opening(n, n + 4.0, True, dead=i >= dead_from), Opening(n, n + 4.0, True, dead=False),
+                                False, straight_dead=True)
+            states.append(b.step(0.1 * i, OdoPose(0.0, 0.5 * i), 0.5 * i, 4.0, lane, view, two_lane=False)[2])
+        assert {d["turn"] for d in b.decisions} == {"left"}, b.decisions
+        if dead_from == 0:
+            assert b.decisions[0]["near_m"] <= BehaviourParams().commit_late_m  # not planned while far
+        assert states[-1] == "junction-left"
+
+
 def test_straight_on_past_an_opening_inside_a_gentle_painted_bend_follows_the_lane():
     # A 50 m left bend on a random look: its inside read as a left opening (the painted
     # detector's bands run straight ahead), the road on as straight on; the car planned the
