@@ -27,6 +27,7 @@ from signlane.road_heading import LaneLateral, RoadHeading
 from signlane.types import LaneEstimate
 
 TURN_SIGNS = {"left", "right", "straight", "no_left", "no_right"}
+BANS = {"no_left": "left", "no_right": "right"}  # the way each "no turn" sign bans
 
 
 @dataclass(frozen=True)
@@ -244,7 +245,7 @@ class Behaviour:
         side only and does not go on straight. A dead end is never an exit; a T-junction reached
         along its stem whose one arm is a dead end, or one whose road straight on ends, leaves one
         exit (a forced turn)."""
-        sides = {name: o for name, o in (("left", j.left), ("right", j.right)) if o is not None and o.closed}
+        sides = _sides(j)
         if not sides:
             return None
         exits = {name for name in sides if not self._dead.get(name)}
@@ -264,7 +265,7 @@ class Behaviour:
     def choose(self, exits: set[str], instruction: str | None) -> str:
         if instruction in ("left", "right", "straight") and instruction in exits:
             return instruction
-        banned = {"no_left": "left", "no_right": "right"}.get(instruction or "", "")
+        banned = BANS.get(instruction or "", "")
         for turn in ("straight", "right", "left"):
             if turn in exits and turn != banned:
                 return turn
@@ -294,7 +295,7 @@ class Behaviour:
         lane bending towards the opening. Its dead-end verdicts are not a junction's (via_town's
         top-right corner: three frames of "straight on ends" out of the bend itself outvoted the
         crossing just past it, whose road goes on, and sent the car into the dead-end stub)."""
-        sides = [name for name, o in (("left", j.left), ("right", j.right)) if o is not None and o.closed]
+        sides = list(_sides(j))
         return len(sides) == 1 and not j.straight and self._bends_towards(lane, sides[0])
 
     def _remember_dead_ends(self, j: JunctionView | None, odo_m: float) -> None:
@@ -366,7 +367,8 @@ class Behaviour:
         exits = self._exits(j)
         if exits is None:
             return False
-        side = [o for o in (j.right, j.left) if o is not None and o.closed]
+        sides = _sides(j)
+        side = list(sides.values())
         near = min(o.near_m for o in side)
         # (VIA's camera shows a painted road's left side from about 12 m on: an opening there
         # begins at the view's edge, its near end unseen, and is as close as it can be seen)
@@ -397,8 +399,8 @@ class Behaviour:
                 return False
             # ... and once near, a way seen but judged dead that obeys the sign is taken: the sign
             # says it is there (random looks: a "no right" T whose left arm read dead, taken right)
-            seen = {name for name, o in (("left", j.left), ("right", j.right)) if o is not None and o.closed}
-            obeying = {w for w in seen | ({"straight"} if j.straight else set()) if _sign_fits({w}, sign.label)}
+            seen = set(sides) | ({"straight"} if j.straight else set())
+            obeying = {w for w in seen if _sign_fits({w}, sign.label)}
             exits = obeying or exits
         self.turn = self.choose(exits, sign.label if sign else None)
         if sign is not None:
@@ -409,9 +411,8 @@ class Behaviour:
         self._plan = {"odo_m": odo_m, "until_m": odo_m + max(near - self.p.replan_margin_m, 0.0), "far_m": far,
                       "sign": sign.label if sign else None, "memory": sign, "turn": self.turn,
                       "dead_at_plan": bool(self._dead.get(self.turn))}
-        inside = [name for name, o in (("left", j.left), ("right", j.right)) if o is not None and o.closed]
         if self.turn == "straight" and (not self.two_lane or (
-                len(inside) == 1 and self._bends_towards(lane, inside[0], self.p.bend_straight_on))):
+                len(sides) == 1 and self._bends_towards(lane, next(iter(sides)), self.p.bend_straight_on))):
             # a kerbed carriageway's edges carry on across a junction (the far edge stands in
             # for the open one), as a painted bend's lane does past a lone opening on its inside:
             # keep following it, and judge no junction until past this one
@@ -465,12 +466,17 @@ _PATH_STEP_M = 0.25  # junction paths are sampled this often
 _TAIL_X = np.arange(_PATH_STEP_M, 12.0, _PATH_STEP_M)  # a turn's straight tail out of its arc, metres
 
 
+def _sides(j: JunctionView) -> dict[str, Opening]:
+    """The side openings of a view whose far edge was seen (closed), by way ("left", "right")."""
+    return {name: o for name, o in (("left", j.left), ("right", j.right)) if o is not None and o.closed}
+
+
 def _sign_fits(exits: set[str], label: str) -> bool:
     """Can a turn sign be obeyed at a junction with these exits: its way among them, or a way
     other than the one it bans?"""
     if label in ("left", "right", "straight"):
         return label in exits
-    banned = {"no_left": "left", "no_right": "right"}.get(label)
+    banned = BANS.get(label)
     return banned is None or bool(exits - {banned})
 
 
