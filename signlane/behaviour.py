@@ -61,6 +61,14 @@ class BehaviourParams:
     max_cut_painted_m: float = 0.6
     commit_near_m: float = 12.0  # plan a junction once its side road starts this close ...
     commit_cut_m: float = 14.0  # ... or, where it starts before the view shows its side, once it is in view this close
+    # an opening that starts before the view shows its side (cut) is a side road only once an
+    # earlier frame of the last cut_seen_m driven saw an opening on that side whose far side lay
+    # where this one's does (within cut_far_m): a side road's far edge is a fixed place on the
+    # ground, seen on every frame as the car comes up to it. Road-coloured verge seen on one
+    # frame is not (random looks, traced: a 1.6 m "opening" at the right strip's view edge, seen
+    # on that frame alone, was taken for the right turn a sign asked for, 30 m before its junction)
+    cut_seen_m: float = 4.0
+    cut_far_m: float = 1.5
     instruction_range_m: float = 40.0  # a turn sign applies to a junction within this distance after it
     sign_slack_m: float = 2.0  # a sign placed this much past a junction's far side (misjudged distance) still counts
     dead_memory_m: float = 6.0  # dead-end verdicts are forgotten this far after the last opening seen
@@ -71,12 +79,27 @@ class BehaviourParams:
     # (1/m; a 25 m circle): a bend (its outer side looks like road ending, its inner like an
     # opening), left to the lane follower. The lane at a junction runs straight up to it
     bend_not_junction: float = 0.04
+    # ... or, on a painted road, bent so on a frame of the last bend_memory_m driven: a lone
+    # opening with the road ending ahead is a bend when the lane showed one lately, whatever this
+    # frame's lane says
+    # (random looks, traced: a left bend's lane bent 0.044-0.055 1/m for a third of a second,
+    # then read straight on the frames of the bend's mouth, where it was planned as a forced
+    # left turn and the car left the road)
+    bend_memory_m: float = 4.0
     # straight on past a lone opening on the inside of a painted bend at least this sharp (1/m; an
     # 83 m circle): keep following the lane, as on a kerbed carriageway, not a path laid straight
     # along the car. A gentle bend's inside reads as an opening to the painted detector (its
     # bands run straight ahead), and a straight path there leaves the lane (random looks, traced:
     # 2 m off over 12 m of a 50 m bend)
     bend_straight_on: float = 0.012
+    # on a painted road, the road's direction over the last metres whose samples spread more than
+    # RoadHeading's 2 degrees is still its median up to this spread: a painted lane's heading at
+    # a junction's mouth, where its paint ends, is the least reliable of all (random looks,
+    # traced: 12.6 degrees on the frame of a plan whose last 3 m gave 2.1 with a 5.4-degree
+    # spread; a lane not found there, the car 13.6 degrees askew after a drift, and a straight
+    # crossing laid along the car). A kerbed carriageway's edges hold at its mouth: its lane
+    # stands in, as out of a lane shift, whose samples spread far more (VIA-style seed 13: 20)
+    painted_heading_spread: float = math.radians(6.0)
     handover_offset: float = 0.5  # out of a kerbed turn's arc, the lane takes over when the car is this near its middle (lane widths)
     handover_offset_painted: float = 0.25  # ... out of a painted one, when the car is at most this far right of the lane's middle
 
@@ -102,6 +125,9 @@ class Behaviour:
         self._dead: dict[str, bool] = {}  # dead-end verdicts of the openings ahead (see _remember_dead_ends)
         self._votes: dict[str, list[int]] = {}  # per way: [frames judging it dead, frames judging it not]
         self._dead_seen_m = -1e9  # odometer at the last frame with an opening
+        self._far_sides: list[tuple[int, float, str, float]] = []  # (frame, odometer, side, far_m) of closed openings
+        self._frame = 0
+        self._bends: list[tuple[float, float, float]] = []  # (odometer, bend right, bend left) of the lanes lately (1/m)
         self._plan: dict | None = None  # the last junction plan, while it may still be made again
         self._epoch = 0  # junctions passed
         self.signs: list[SignMemory] = []
@@ -163,6 +189,7 @@ class Behaviour:
         """-> (steering [-1, 1], throttle [0, 1], state). `two_lane`: a painted road driven on its
         right lane (False: a kerbed carriageway driven in its middle)."""
         self.two_lane = two_lane
+        self._frame += 1
         # forget signs left far behind, and those dealt with once passed (out of view: a memory of
         # them could only swallow a new sign at the place dead reckoning drifts them to)
         self.signs = [m for m in self.signs if self._ahead(pose, m) > (-2.0 if m.done else -self.p.instruction_range_m)]
@@ -170,10 +197,13 @@ class Behaviour:
         if self.path is None:
             self.road_heading.add(odo_m, pose.heading, lane)
             self.lane_lateral.add(odo_m, lane)
+            self._remember_bend(lane, odo_m)
         if junction is not None and self._reconsider(pose, odo_m, junction):
             self.path, self.cooldown_until_m = None, -1.0  # plan this junction again, with what is known now
+        if junction is not None:
+            self._remember_far_sides(junction, odo_m)
         if self.path is None and junction is not None and odo_m > self.cooldown_until_m:
-            self._plan_junction(pose, lane, junction, odo_m)
+            self._plan_junction(pose, lane, self._without_unseen_cuts(junction, odo_m), odo_m)
         if self.path is not None:
             steering, throttle, state = self._junction_step(pose, odo_m, speed, lane)
             stop = self._stop(t, pose, speed)  # a stop sign before the junction still holds
@@ -279,15 +309,30 @@ class Behaviour:
                 and -self.p.instruction_range_m < self._ahead(pose, m) < far_m + self.p.sign_slack_m]
         return max(live, key=lambda m: self._ahead(pose, m), default=None)
 
+    def _bend(self, lane: LaneEstimate, towards: float) -> float:
+        """How sharply (1/m) the lane bends towards one side (+1 right, -1 left): the traced line's
+        bend as the car would steer to it, or the lane's own fitted curvature (off the lane's
+        middle in an S the first reads the bend short)."""
+        return max(path_bend_towards(lane.path_m, self.p.curve_preview_m, towards), towards * lane.curvature)
+
+    def _remember_bend(self, lane: LaneEstimate, odo_m: float) -> None:
+        self._bends = [b for b in self._bends[-200:] if b[0] >= odo_m - self.p.bend_memory_m]
+        if lane.found:
+            self._bends.append((odo_m, self._bend(lane, 1.0), self._bend(lane, -1.0)))
+
+    def _bent_lately(self, way: str, odo_m: float) -> bool:
+        """Did the lane bend towards `way` as sharply as a bend on a frame of the last bend_memory_m?"""
+        if way not in ("left", "right"):
+            return False
+        i = 1 if way == "right" else 2
+        return any(b[i] > self.p.bend_not_junction for b in self._bends if b[0] >= odo_m - self.p.bend_memory_m)
+
     def _bends_towards(self, lane: LaneEstimate, way: str, sharper_than: float | None = None) -> bool:
         """Does the lane bend towards `way` ("left"/"right") as sharply as a bend, not a road
         running straight up to a junction (bend_not_junction, or `sharper_than`)?"""
         if not lane.found or way not in ("left", "right"):
             return False
-        towards = 1.0 if way == "right" else -1.0
-        # (the traced line's bend as the car would steer to it, or the lane's own fitted
-        # curvature: off the lane's middle in an S the first reads the bend short)
-        bend = max(path_bend_towards(lane.path_m, self.p.curve_preview_m, towards), towards * lane.curvature)
+        bend = self._bend(lane, 1.0 if way == "right" else -1.0)
         return bend > (self.p.bend_not_junction if sharper_than is None else sharper_than)
 
     def _bend_view(self, j: JunctionView, lane: LaneEstimate) -> bool:
@@ -319,6 +364,22 @@ class Behaviour:
                 v = self._votes.setdefault(name, [0, 0])
                 v[0 if dead else 1] += 1
         self._dead = {name: v[0] >= 2 and v[0] > v[1] for name, v in self._votes.items()}
+
+    def _remember_far_sides(self, j: JunctionView, odo_m: float) -> None:
+        """Where this frame's closed openings end (their far sides), for _without_unseen_cuts."""
+        # (at most the last 200: a car standing still keeps adding at one odometer reading)
+        self._far_sides = [f for f in self._far_sides[-200:] if f[1] >= odo_m - self.p.cut_seen_m]
+        self._far_sides += [(self._frame, odo_m, side, o.far_m) for side, o in _sides(j).items()]
+
+    def _without_unseen_cuts(self, j: JunctionView, odo_m: float) -> JunctionView:
+        """The view without its cut openings that no earlier frame saw (see cut_seen_m)."""
+        drop = {}
+        for side, o in (("left", j.left), ("right", j.right)):
+            if o is not None and o.cut and not any(
+                    f[0] < self._frame and f[2] == side and abs(f[3] - (odo_m - f[1]) - o.far_m) <= self.p.cut_far_m
+                    for f in self._far_sides):
+                drop[side] = None
+        return replace(j, **drop) if drop else j
 
     def _reconsider(self, pose: OdoPose, odo_m: float, j: JunctionView) -> bool:
         """Should the last junction plan be made again? Only while the car has not reached the
@@ -376,8 +437,9 @@ class Behaviour:
             return False
         if lane.found and abs(lane.heading) > self.p.aligned_rad and near > self.p.commit_late_m:
             return False  # still turning out of a bend (or a lane shift): what it sees of the junction is askew
-        if len(exits) == 1 and len(side) == 1 and self._bends_towards(lane, next(iter(exits))):
-            return False
+        if len(exits) == 1 and len(side) == 1 and (self._bends_towards(lane, next(iter(exits))) or (
+                self.two_lane and self._bent_lately(next(iter(exits)), odo_m))):
+            return False  # (a kerbed carriageway's corners are driven as turns: VIA's are chamfered)
         # the path is laid along the road, not along the car (heading > 0: the car points right
         # of it): the road's direction over the last metres, else this frame's lane. Out of a
         # bend the car meets the junction askew, and the side road's ends it sees ahead lie at
@@ -386,6 +448,8 @@ class Behaviour:
         # When to plan stays judged on what the car sees: a frame whose lane heading is misread
         # would otherwise move a far junction near enough to plan
         heading = self.road_heading.car_heading(odo_m, pose.heading)
+        if heading is None and self.two_lane:
+            heading = self.road_heading.car_heading(odo_m, pose.heading, self.p.painted_heading_spread)
         heading = heading if heading is not None else (lane.heading if lane.found else None)
         side = [_along_road(o, heading) for o in side]
         y_c = float(np.mean([o.centre_m for o in side]))

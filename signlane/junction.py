@@ -72,6 +72,7 @@ class JunctionParams:
     strip_m: tuple[float, float] = (2.0, 4.5)  # side strip, metres beyond the road edge
     road_frac: float = 0.55  # a row of the strip counts as road above this fraction
     min_open_m: float = 3.5  # shortest opening (a side road is about 7 m wide)
+    joined: bool = True  # an opening's rows are road from the road's edge out (see detect)
     lab_tol: tuple[float, float, float] = (28.0, 9.0, 9.0)
     shadow_floor: float = 0.35  # shadowed road keeps at least this share of the reference lightness
     edge_band_m: float = 0.7  # the edge line is looked for this far either side of where it should be
@@ -247,7 +248,15 @@ class JunctionDetector:
             a, b = sorted((edge + sgn * p.strip_m[0], edge + sgn * p.strip_m[1]))
             strip = mask[:, self._col(a):self._col(b) + 1] > 0
             seen = self.visible[:, self._col(a):self._col(b) + 1].mean(axis=1) > 0.8
-            out[side] = self._runs(strip.mean(axis=1), seen, self.edge_paint(response, line), 0.5 * (a + b))
+            # a side road joins the road: the ground between the road's edge and the strip is
+            # road on its rows too. Verge that looks like road in patches does not (random looks
+            # with a road model, traced: shadowed grass read as road in blobs out in the strip,
+            # the verge between them and the road's edge not, planned as a side road 20 m
+            # before the junction)
+            g0, g1 = sorted((edge, edge + sgn * p.strip_m[0]))
+            gap = mask[:, self._col(g0):self._col(g1) + 1] > 0
+            frac = np.minimum(strip.mean(axis=1), gap.mean(axis=1)) if p.joined else strip.mean(axis=1)
+            out[side] = self._runs(frac, seen, self.edge_paint(response, line), 0.5 * (a + b))
         straight = None
         opening = out["right"] or out["left"]
         if opening is not None and opening.closed:

@@ -33,10 +33,12 @@ class RoadHeading:
     odometer. `window_m`: how far back samples count; an answer needs `min_samples` of them spread
     over `min_span_m`, from frames whose lane confidence is at least `min_confidence`, at most one
     per `step_m` driven, and agreeing: their robust spread (1.4826 x the median absolute
-    deviation) at most `max_spread` radians."""
+    deviation) at most `max_spread` radians. (A lane whose one line is found and the other placed
+    a lane width from it has confidence 0.5: at 0.8, random looks with a worn edge line left no
+    sample in the 3 m before most junctions, and the path was laid along one frame's lane.)"""
 
     def __init__(self, window_m: float = 3.0, min_samples: int = 8, min_span_m: float = 1.5,
-                 min_confidence: float = 0.8, step_m: float = 0.1, max_spread: float = math.radians(2.0)):
+                 min_confidence: float = 0.5, step_m: float = 0.1, max_spread: float = math.radians(2.0)):
         self.window_m, self.min_samples, self.min_span_m = window_m, min_samples, min_span_m
         self.min_confidence, self.step_m, self.max_spread = min_confidence, step_m, max_spread
         self._samples: deque[tuple[float, float]] = deque()
@@ -52,9 +54,10 @@ class RoadHeading:
         while self._samples and self._samples[0][0] < odo_m - self.window_m:
             self._samples.popleft()
 
-    def car_heading(self, odo_m: float, car_heading: float) -> float | None:
+    def car_heading(self, odo_m: float, car_heading: float, max_spread: float | None = None) -> float | None:
         """The car's heading against the road at the odometer odo_m (radians, + the car points
-        right of it, as LaneEstimate.heading), or None with too few samples or samples that disagree."""
+        right of it, as LaneEstimate.heading), or None with too few samples or samples that
+        disagree (spread more than `max_spread`, by default the tracker's)."""
         recent = [(d, a) for d, a in self._samples if d >= odo_m - self.window_m]
         if len(recent) < self.min_samples or recent[-1][0] - recent[0][0] < self.min_span_m:
             return None
@@ -65,25 +68,34 @@ class RoadHeading:
         # has no one direction: say nothing, rather than a median of two roads (VIA-style seed 13:
         # samples from -38 to +15 degrees out of a lane shift, the median -19, the turn laid 34
         # degrees askew and the car over the kerb)
-        if 1.4826 * float(np.median(np.abs(rel - mid))) > self.max_spread:
+        if 1.4826 * float(np.median(np.abs(rel - mid))) > (self.max_spread if max_spread is None else max_spread):
             return None
         return mid
 
 
 class LaneLateral:
     """Where the lane's centre lies beside the car (metres, + right), remembered over the last
-    `window_m` driven: the median of the frames' lanes there, from at least `min_samples` frames."""
+    `window_m` driven: the median of the frames' lanes there, from at least `min_samples` frames.
+    A frame's lane further than `max_jump_m` from the median of those before it is left out: a
+    car following its lane does not move sideways that fast, a misread lane does (random looks,
+    traced: at a crossing's mouth the paint method took the side road's lines for the lane on
+    five frames in a row, 1-1.2 lane widths right of it, and their median put a straight path's
+    start 3.8 m right of the car)."""
 
-    def __init__(self, window_m: float = 2.0, min_samples: int = 4):
-        self.window_m, self.min_samples = window_m, min_samples
+    def __init__(self, window_m: float = 2.0, min_samples: int = 4, max_jump_m: float = 0.8):
+        self.window_m, self.min_samples, self.max_jump_m = window_m, min_samples, max_jump_m
         self._samples: deque[tuple[float, float]] = deque()
 
     def add(self, odo_m: float, lane: LaneEstimate) -> None:
-        if lane.found and math.isfinite(lane.offset) and lane.lane_width_m > 0:
-            # offset > 0: the car is right of the lane's centre, so the centre is left of the car
-            self._samples.append((odo_m, -lane.offset * lane.lane_width_m))
         while self._samples and self._samples[0][0] < odo_m - self.window_m:
             self._samples.popleft()
+        if lane.found and math.isfinite(lane.offset) and lane.lane_width_m > 0:
+            # offset > 0: the car is right of the lane's centre, so the centre is left of the car
+            x = -lane.offset * lane.lane_width_m
+            if len(self._samples) >= self.min_samples and \
+                    abs(x - float(np.median([v for _, v in self._samples]))) > self.max_jump_m:
+                return
+            self._samples.append((odo_m, x))
 
     def lateral_m(self, odo_m: float) -> float | None:
         """The lane centre's lateral place at the odometer odo_m, or None with too few samples."""

@@ -11,7 +11,7 @@ from signlane.behaviour import Behaviour, _junction_path, _rotate, BehaviourPara
 from signlane.camera import via_camera
 from signlane.config import Config
 from signlane.control import PurePursuit, path_bend_towards
-from signlane.junction import JunctionDetector, JunctionView, Opening, view_from_scan
+from signlane.junction import JunctionDetector, JunctionParams, JunctionView, Opening, view_from_scan
 from signlane.odometry import OdoPose, Odometry
 from signlane.sim.driver import Driver
 from signlane.sim.simulator import SimConfig, Simulator, run_inprocess
@@ -695,3 +695,105 @@ def test_pure_pursuit_shortens_its_lookahead_in_a_painted_bend():
     x = np.where(ys < 3.0, 0.0, r - np.sqrt(r * r - np.clip(ys - 3.0, 0.0, None) ** 2))
     entry = LaneEstimate("test", True, curvature=1 / r, lane_width_m=3.2, path_m=np.column_stack([x, ys]))
     assert 0.0 < capped.step(entry, 4.5) < 0.5 * free.step(entry, 4.5)
+
+
+def test_a_cut_opening_whose_far_side_no_earlier_frame_saw_is_not_a_side_road():
+    # random looks, traced: road-coloured verge read as openings on the right, 15-20 m out on
+    # some frames, and on one frame as a 1.6 m opening starting at the right strip's view edge
+    # (cut); that frame's "side road" was taken for the right turn a sign asked for, 30 m before
+    # its junction. A side road's far edge is a fixed place on the ground, seen frame after frame.
+    lane = _straight_lane(3.2)
+
+    def drive(params: BehaviourParams) -> list[str]:
+        b, states = Behaviour(params), []
+        views = [Opening(15.3, 20.7, True, dead=False), None, Opening(15.7, 20.3, True, dead=False),
+                 Opening(7.6, 9.2, True, dead=False, cut=True),  # this frame's far side: not where any was
+                 Opening(7.6, 8.9, True, dead=False, cut=True)]  # the next frame's: 0.3 m nearer, as driven
+        for i, o in enumerate(views):
+            view = JunctionView(None, o, True, straight_dead=False)
+            states.append(b.step(0.1 * i, OdoPose(0.0, 0.3 * i), 0.3 * i, 3.0, lane, view)[2])
+        return states
+
+    assert drive(BehaviourParams()) == ["cruise"] * 4 + ["junction-straight"]
+    # without asking where its far side was seen, the one frame's verge is planned as a junction
+    assert drive(BehaviourParams(cut_far_m=1e9))[3] == "junction-straight"
+
+
+def test_a_lone_opening_the_painted_lane_bent_toward_lately_is_a_bend():
+    # random looks, traced: a left bend's lane bent 0.044-0.055 1/m for a third of a second, then
+    # read straight on the frames of the bend's mouth; the bend's inside, a lone opening with the
+    # road ending ahead, was planned as a forced left turn there and the car left the road
+    ys = np.arange(3.5, 12.0, 0.5)
+    bending = LaneEstimate("test", True, curvature=-0.05, lane_width_m=3.2,
+                           path_m=np.column_stack([-0.025 * ys ** 2, ys]))
+    straight = _straight_lane(3.2)
+
+    def drive(params: BehaviourParams, two_lane: bool = True) -> str:
+        b = Behaviour(params)
+        for i in range(8):  # 2.4 m of the bend's lane, 0.6 m of straight-read frames
+            b.step(0.1 * i, OdoPose(0.0, 0.3 * i), 0.3 * i, 3.0, bending if i < 6 else straight, None, two_lane)
+        state = ""
+        for i in range(8, 11):
+            n = 10.0 - 0.3 * (i - 8)
+            view = JunctionView(Opening(n, n + 7.0, True, dead=False), None, False, straight_dead=True)
+            state = b.step(0.1 * i, OdoPose(0.0, 0.3 * i), 0.3 * i, 3.0, straight, view, two_lane)[2]
+        return state
+
+    assert drive(BehaviourParams()) != "junction-left"
+    assert drive(BehaviourParams(bend_memory_m=0.0)) == "junction-left"  # this frame's lane alone: a turn
+    assert drive(BehaviourParams(), two_lane=False) == "junction-left"  # a kerbed corner is driven as a turn
+
+
+def test_road_coloured_verge_apart_from_the_road_is_no_side_road():
+    # random looks with a road model, traced: shadowed grass read as road in blobs out in the
+    # right strip, the verge between them and the road's edge not, and planned as a side road
+    # 20 m before the junction. A side road joins the road: its ground is road from the edge out.
+    cam = via_camera(320, 240)
+    det = JunctionDetector(cam)
+    bev = det.bev
+    w, h = bev.size
+    col = lambda x: int(round((x - bev.x_range_m[0]) * det.p.px_per_m))  # noqa: E731
+    row = lambda y: int(round((bev.y_range_m[1] - y) * det.p.px_per_m))  # noqa: E731
+
+    def frame(patch_from_m: float) -> np.ndarray:
+        img = np.zeros((h, w, 3), np.uint8)
+        img[:] = (40, 90, 60)  # grass
+        img[:, col(-5.3):col(2.1)] = (100, 100, 100)  # a 7.4 m road, the car in its right lane
+        for x in (-4.8, 1.6):  # its solid edge lines ...
+            img[:, col(x) - 1:col(x) + 1] = (230, 230, 230)
+        img[row(17.0):row(10.0), col(1.0):col(2.2)] = (100, 100, 100)  # ... the right one worn away here
+        img[row(17.0):row(10.0), col(patch_from_m):col(6.8)] = (100, 100, 100)  # road-coloured ground
+        return bev.unwarp(img, 0)
+
+    joined, apart = frame(2.1), frame(4.3)
+    assert JunctionDetector(cam).detect(joined).right is not None  # a side road's mouth
+    assert JunctionDetector(cam).detect(apart).right is None  # verge, with grass between it and the road
+    loose = JunctionDetector(cam, JunctionParams(joined=False)).detect(apart).right
+    assert loose is not None  # (the strip alone took it for a side road)
+
+
+def test_a_painted_crossing_is_laid_along_a_noisy_road_heading_not_the_mouths_lane():
+    # random looks, traced: the approach's lane headings spread 5.4 degrees about the road's
+    # direction (over RoadHeading's 2 degrees, so it said nothing), and the frame of the plan read
+    # 12.6 degrees; the straight path laid along it left the road. On a painted road the noisy
+    # road's median lays it.
+    def laid(params: BehaviourParams) -> float:
+        b = Behaviour(params)
+        ys = np.arange(3.5, 12.0, 0.5)
+        path = np.column_stack([np.zeros_like(ys), ys])
+        rng = np.random.default_rng(0)
+        for i in range(40):  # the road 0.04 rad left of the car's north, read with 4 degrees of noise
+            lane = LaneEstimate("test", True, heading=0.04 + float(rng.normal(0.0, math.radians(4.0))),
+                                confidence=1.0, lane_width_m=3.2, path_m=path)
+            b.step(0.1 * i, OdoPose(0.0, 0.2 * i), 0.2 * i, 3.0, lane, None, two_lane=True)
+        assert b.road_heading.car_heading(8.0, math.pi / 2) is None  # too spread for the strict test
+        misread = LaneEstimate("test", True, heading=0.22, confidence=1.0, lane_width_m=3.2, path_m=path)
+        crossing = JunctionView(Opening(6.0, 13.0, True, dead=False), Opening(6.0, 13.0, True, dead=False), True,
+                                straight_dead=False)
+        assert b.step(4.0, OdoPose(0.0, 8.0), 8.0, 3.0, misread, crossing, two_lane=True)[2] == "junction-straight"
+        dx, dy = b.path[-1] - b.path[0]
+        return math.atan2(dy, dx) - math.pi / 2  # the path's direction, radians left of north
+
+    assert abs(laid(BehaviourParams()) - 0.04) < math.radians(2.0)
+    # (with only the strict test, the mouth's lane lays it: 0.22 rad off the car's north)
+    assert abs(laid(BehaviourParams(painted_heading_spread=math.radians(2.0))) - 0.22) < 1e-6

@@ -49,9 +49,12 @@ def test_too_little_road_says_nothing_and_a_waiting_car_adds_one_sample():
     for i in range(200):  # stopped at a stop line: the odometer stands still
         rh.add(1.0, 0.0, _lane(0.01))
     assert rh.car_heading(1.0, 0.0) is None  # 6 samples over 1 m
-    for i in range(30):  # unsure frames do not count
-        rh.add(1.2 + 0.2 * i, 0.0, _lane(0.01, confidence=0.5))
+    for i in range(30):  # unsure frames (no line found well) do not count
+        rh.add(1.2 + 0.2 * i, 0.0, _lane(0.01, confidence=0.3))
     assert rh.car_heading(7.0, 0.0) is None
+    for i in range(30):  # a lane with one line found, the other placed from it, does
+        rh.add(7.2 + 0.2 * i, 0.0, _lane(0.01, confidence=0.5))
+    assert abs(rh.car_heading(13.0, 0.0) - 0.01) < 1e-6
     # samples older than the window are forgotten
     rh = RoadHeading(window_m=3.0)
     for i in range(50):
@@ -85,3 +88,27 @@ def test_a_misread_last_frame_does_not_move_where_a_junction_path_starts():
     assert ll.lateral_m(1.8 + 3.0) is None
     ll.add(10.0, LaneEstimate("test", False))
     assert ll.lateral_m(10.0) is None
+
+
+def test_a_run_of_misread_frames_does_not_move_where_a_junction_path_starts():
+    # traced on a random look: at a crossing's mouth the paint method took the side road's lines
+    # for the lane, 1-1.2 lane widths right, on the frames of the last 1.2 m: most of the window
+    def lane(centre_m: float) -> LaneEstimate:
+        return LaneEstimate("test", True, offset=-centre_m / 3.5, lane_width_m=3.5)
+
+    ll, odo = LaneLateral(), [0.1 * i for i in range(43)]
+    for d in odo[:31]:
+        ll.add(d, lane(-0.1))
+    for d in odo[31:]:
+        ll.add(d, lane(3.5 + 0.7 * math.sin(d)))
+    assert abs(ll.lateral_m(odo[-1]) + 0.1) < 1e-6
+    # without leaving them out, their median is where the path would start, metres right
+    free = LaneLateral(max_jump_m=99.0)
+    for d in odo:
+        free.add(d, lane(-0.1) if d < odo[31] else lane(3.5 + 0.7 * math.sin(d)))
+    assert free.lateral_m(odo[-1]) > 2.5
+    # a car that drifts sideways as a car can (0.4 m per metre driven) is followed
+    drift = LaneLateral()
+    for d in odo:
+        drift.add(d, lane(0.4 * d))
+    assert abs(drift.lateral_m(odo[-1]) - 0.4 * 3.2) < 0.15

@@ -52,10 +52,17 @@ def test_a_two_lane_road_whose_centre_line_fades_stays_two_lane_while_it_is_two_
     seen, state = _drive([_frame(**PAINTED, centre_m=-1.6, phase_m=0.2 * i) for i in range(20)])
     assert seen[-1] and state.held
     faded = [_frame(**PAINTED, centre_m=None) for _ in range(40)]
-    kinds, _ = _drive(faded, state)
+    kinds, faded_state = _drive(faded, state)
     assert all(kinds)
     # without the hold the road turns kerbed within a second (the car would steer to its middle)
     kinds, _ = _drive(faded, replace(state, held=False), replace(P, two_lanes_m=99.0))
+    assert not kinds[-1]
+    # a few frames that measure the faded road narrow (a kerbed carriageway's 4 m) do not end the
+    # hold (one such frame did, before RoadEdgesParams.release_frames)
+    narrow = [_frame(-2.0, 2.0, None) for _ in range(3)]
+    kinds, held = _drive(narrow + faded, faded_state)
+    assert all(kinds) and held.held
+    kinds, _ = _drive(narrow + faded, faded_state, replace(P, release_frames=1))
     assert not kinds[-1]
     # a road narrowed to a kerbed carriageway's 4 m without a centre line is kerbed again
     kinds, state = _drive([_frame(-2.0, 2.0, None) for _ in range(40)], state)
@@ -84,3 +91,14 @@ def test_the_paint_lane_is_the_cars_only_in_the_right_half_of_the_carriageway():
         assert not _keeps_right(_lane_at(-car_m - 1.6), scan, params)  # a "lane" astride the centre line
         # where the carriageway was not seen, it cannot tell: the paint stands
         assert _keeps_right(_lane_at(-car_m - 3.2), None, params)
+
+
+def test_a_carriageway_narrower_than_two_lanes_has_no_centre_line():
+    # random looks, traced: VIA's kerbed road (4.2-4.8 m measured) with grey kerbs turned
+    # "two-lane" in a bend, where the carriageway's middle band ran over a kerb, and the paint
+    # method steered the car onto it. A stripe down a 4 m carriageway's middle stands in here.
+    narrow = [_frame(-2.0, 2.0, centre_m=0.0, phase_m=0.2 * i) for i in range(30)]
+    kinds, state = _drive(narrow)
+    assert not any(kinds) and state.centre_paint < 0.01
+    kinds, _ = _drive(narrow, params=replace(P, centre_line_from_m=0.0))
+    assert kinds[-1]  # (a centre line when any width may have one)

@@ -65,6 +65,18 @@ class RoadEdgesParams:
     # a two-lane road stays one, its centre line seen or not, while it is at least this wide: two
     # of the narrowest lanes (2.75 m); VIA's kerbed carriageway is 4 m (3.6-4.4 in its look-alikes)
     two_lanes_m: float = 5.5
+    # ... and it stops being one only once this many well-seen frames in a row (a second at 30
+    # frames/s) measure it narrower: a frame's carriageway can come out narrow (random looks,
+    # traced: a 7.4 m road measured 7-8 m, and 4.7-5.1 m on single frames, each of which let go
+    # of the hold while its centre line faded, and the car steered to the carriageway's middle;
+    # entering a bend, the road leaving the view sideways measured narrow for a third of a second)
+    release_frames: int = 30
+    # a carriageway narrower than this (two of the narrowest lanes) has no centre line, whatever
+    # its middle shows: in a bend the middle band can run over a kerb
+    # (random looks, traced: VIA's kerbed road with grey kerbs, measured 4.2-4.8 m, turned
+    # "two-lane" in a right bend within a third of a second, and the paint method steered the
+    # car onto the inner kerb)
+    centre_line_from_m: float = 5.5
 
     @classmethod
     def published(cls) -> "RoadEdgesParams":
@@ -80,6 +92,7 @@ class RoadEdgesState:
     road_lab: tuple[float, float, float] | None = None  # the road's colour, averaged over frames
     # the road showed a centre line and has been two lanes wide (two_lanes_m) ever since
     held: bool = False
+    narrow_frames: int = 0  # well-seen frames in a row, up to the last, narrower than two_lanes_m
 
     @property
     def two_lane(self) -> bool:
@@ -351,19 +364,23 @@ def carriageway(image_bgr: np.ndarray, cam: Camera, p: RoadEdgesParams, state: R
     left = _fit(np.column_stack([scan.run_l, scan.y])[scan.ok_l], p)
     right = _fit(np.column_stack([scan.run_r, scan.y])[scan.ok_r], p)
     good = left is not None and right is not None and p.min_width_m < scan.width_m < p.max_width_m
-    paint = _centre_paint(bright, bev, scan, p) if good else None
+    # only a well-seen carriageway says whether it has a centre line, and one narrower than two
+    # lanes has none (see RoadEdgesParams.centre_line_from_m)
+    paint = None if not good else (_centre_paint(bright, bev, scan, p) if scan.width_m >= p.centre_line_from_m else 0.0)
     memory, lab = state.centre_paint, state.road_lab
-    if paint is not None:  # only a well-seen carriageway says whether it has a centre line
+    if paint is not None:
         memory = paint if memory is None else p.paint_memory * memory + (1 - p.paint_memory) * paint
-    held = state.held
+    held, narrow = state.held, state.narrow_frames
     if good:
         lab = tuple(float(v) for v in (ref if lab is None else 0.9 * np.asarray(lab) + 0.1 * ref))
-        held = scan.width_m >= p.two_lanes_m and (state.two_lane or (memory is not None and memory > p.paint_share))
+        narrow = narrow + 1 if scan.width_m < p.two_lanes_m else 0
+        two = state.two_lane or (memory is not None and memory > p.paint_share)
+        held = two and (narrow == 0 or (state.held and narrow < p.release_frames))
     if maps is not None:  # the model's road, found or not
         mask = maps.frame_mask(maps.road, w, h)
     else:
         mask = drivable_mask(bev, road) if unwarp and (left is not None or right is not None) else None
-    return left, right, scan.width_m, RoadEdgesState(scan.width_m, memory, bev, scan, lab, held), mask
+    return left, right, scan.width_m, RoadEdgesState(scan.width_m, memory, bev, scan, lab, held, narrow), mask
 
 
 def drivable_mask(bev: BirdsEye, road: np.ndarray) -> np.ndarray:
