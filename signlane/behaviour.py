@@ -69,6 +69,13 @@ class BehaviourParams:
     # on that frame alone, was taken for the right turn a sign asked for, 30 m before its junction)
     cut_seen_m: float = 4.0
     cut_far_m: float = 1.5
+    # where the road ahead is judged a dead end (a T reached along its stem, a corner), a side
+    # opening that this frame does not show is still where a frame of the last side_memory_m
+    # driven saw it (closed, not cut), moved on by the metres driven since: the car has to turn
+    # there, and a road model reads a side arm 10-15 m out on only some frames (random looks,
+    # dev seed 100, traced: a T's right arm seen on one frame in ten, its left arm cut on
+    # another; no plan was made, the car drove into the T's mouth and off the road)
+    side_memory_m: float = 4.0
     instruction_range_m: float = 40.0  # a turn sign applies to a junction within this distance after it
     sign_slack_m: float = 2.0  # a sign placed this much past a junction's far side (misjudged distance) still counts
     dead_memory_m: float = 6.0  # dead-end verdicts are forgotten this far after the last opening seen
@@ -125,7 +132,7 @@ class Behaviour:
         self._dead: dict[str, bool] = {}  # dead-end verdicts of the openings ahead (see _remember_dead_ends)
         self._votes: dict[str, list[int]] = {}  # per way: [frames judging it dead, frames judging it not]
         self._dead_seen_m = -1e9  # odometer at the last frame with an opening
-        self._far_sides: list[tuple[int, float, str, float]] = []  # (frame, odometer, side, far_m) of closed openings
+        self._far_sides: list[tuple[int, float, str, Opening]] = []  # (frame, odometer, side, opening): closed openings seen
         self._frame = 0
         self._bends: list[tuple[float, float, float]] = []  # (odometer, bend right, bend left) of the lanes lately (1/m)
         self._plan: dict | None = None  # the last junction plan, while it may still be made again
@@ -203,7 +210,8 @@ class Behaviour:
         if junction is not None:
             self._remember_far_sides(junction, odo_m)
         if self.path is None and junction is not None and odo_m > self.cooldown_until_m:
-            self._plan_junction(pose, lane, self._without_unseen_cuts(junction, odo_m), odo_m)
+            view = self._with_remembered_sides(self._without_unseen_cuts(junction, odo_m), junction, odo_m)
+            self._plan_junction(pose, lane, view, odo_m)
         if self.path is not None:
             steering, throttle, state = self._junction_step(pose, odo_m, speed, lane)
             stop = self._stop(t, pose, speed)  # a stop sign before the junction still holds
@@ -366,17 +374,38 @@ class Behaviour:
         self._dead = {name: v[0] >= 2 and v[0] > v[1] for name, v in self._votes.items()}
 
     def _remember_far_sides(self, j: JunctionView, odo_m: float) -> None:
-        """Where this frame's closed openings end (their far sides), for _without_unseen_cuts."""
+        """This frame's closed openings, for _without_unseen_cuts and _with_remembered_sides."""
         # (at most the last 200: a car standing still keeps adding at one odometer reading)
-        self._far_sides = [f for f in self._far_sides[-200:] if f[1] >= odo_m - self.p.cut_seen_m]
-        self._far_sides += [(self._frame, odo_m, side, o.far_m) for side, o in _sides(j).items()]
+        keep_m = max(self.p.cut_seen_m, self.p.side_memory_m)
+        self._far_sides = [f for f in self._far_sides[-200:] if f[1] >= odo_m - keep_m]
+        self._far_sides += [(self._frame, odo_m, side, o) for side, o in _sides(j).items()]
+
+    def _with_remembered_sides(self, j: JunctionView, seen: JunctionView, odo_m: float) -> JunctionView:
+        """`j` with the side openings it lacks where the last frames saw them, on a frame that
+        sees an opening (`seen`: the frame's own view) with the road ahead judged a dead end (see
+        side_memory_m)."""
+        if not self._dead.get("straight") or not _sides(seen):
+            return j
+        add = {}
+        for side in ("left", "right"):
+            if getattr(j, side) is not None:
+                continue
+            before = [f for f in self._far_sides if f[0] < self._frame and f[2] == side and not f[3].cut
+                      and f[1] >= odo_m - self.p.side_memory_m]
+            if before:
+                _, at_m, _, o = max(before, key=lambda f: f[0])  # the latest frame's
+                d = odo_m - at_m
+                if o.far_m - d > 0.0:  # its far side still ahead
+                    add[side] = replace(o, near_m=o.near_m - d, far_m=o.far_m - d)
+        return replace(j, **add) if add else j
 
     def _without_unseen_cuts(self, j: JunctionView, odo_m: float) -> JunctionView:
         """The view without its cut openings that no earlier frame saw (see cut_seen_m)."""
         drop = {}
         for side, o in (("left", j.left), ("right", j.right)):
             if o is not None and o.cut and not any(
-                    f[0] < self._frame and f[2] == side and abs(f[3] - (odo_m - f[1]) - o.far_m) <= self.p.cut_far_m
+                    f[0] < self._frame and f[2] == side and f[1] >= odo_m - self.p.cut_seen_m
+                    and abs(f[3].far_m - (odo_m - f[1]) - o.far_m) <= self.p.cut_far_m
                     for f in self._far_sides):
                 drop[side] = None
         return replace(j, **drop) if drop else j

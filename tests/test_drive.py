@@ -719,6 +719,26 @@ def test_a_cut_opening_whose_far_side_no_earlier_frame_saw_is_not_a_side_road():
     assert drive(BehaviourParams(cut_far_m=1e9))[3] == "junction-straight"
 
 
+def test_a_dead_end_road_turns_where_a_recent_frame_saw_its_side_road():
+    # random looks with a road model, dev seed 100, traced: a T reached along its stem, its right
+    # arm seen on one frame 10 m out, then on no other; its left arm read as a cut opening once,
+    # which no earlier frame saw. No plan was made and the car drove into the T's mouth.
+    lane = _straight_lane(3.2)
+
+    def drive(params: BehaviourParams) -> str:
+        b, state = Behaviour(params), ""
+        views = [JunctionView(None, Opening(10.1, 15.3, True, dead=False), False, straight_dead=True),
+                 None, None, None,
+                 JunctionView(Opening(9.8, 11.4, True, dead=False, cut=True), None, False, straight_dead=True)]
+        for i, view in enumerate(views):
+            state = b.step(0.1 * i, OdoPose(0.0, 0.6 * i), 0.6 * i, 3.0, lane, view)[2]
+        return state
+
+    assert drive(BehaviourParams()) == "junction-right"  # the right arm, 2.4 m nearer than when seen
+    # this frame's view alone (its cut left arm dropped as unseen before): no junction
+    assert drive(BehaviourParams(side_memory_m=0.0)) == "cruise"
+
+
 def test_a_lone_opening_the_painted_lane_bent_toward_lately_is_a_bend():
     # random looks, traced: a left bend's lane bent 0.044-0.055 1/m for a third of a second, then
     # read straight on the frames of the bend's mouth; the bend's inside, a lone opening with the
