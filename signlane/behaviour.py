@@ -20,6 +20,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from signlane.angles import wrap_pi
 from signlane.control import PurePursuit, path_bend_towards, path_curvature
 from signlane.junction import JunctionView, Opening
 from signlane.odometry import OdoPose
@@ -479,6 +480,16 @@ class Behaviour:
         heading = self.road_heading.car_heading(odo_m, pose.heading)
         if heading is None and self.two_lane:
             heading = self.road_heading.car_heading(odo_m, pose.heading, self.p.painted_heading_spread)
+        # a plan made again (news before the junction) is for the same road: where the road's
+        # direction is not known now, the one the plan it replaces was laid along, not this
+        # frame's lane. The road's direction gathers no samples while a plan is driven (random
+        # looks, VIA style, seed 14, traced: a right turn planned at the start, its arm found dead
+        # 2.6 m on; the left turn made again along a frame's lane read 11.6 degrees askew (the
+        # frames before it: from 3.7 degrees one way to 13.6 the other), and the car swung right
+        # first and left the road 1.9 m wide of the turn)
+        again = self._plan if self._plan is not None and odo_m <= self._plan["until_m"] else None
+        if heading is None and again is not None and again["road_dir"] is not None:
+            heading = float(wrap_pi(again["road_dir"] - pose.heading))
         heading = heading if heading is not None else (lane.heading if lane.found else None)
         side = [_along_road(o, heading) for o in side]
         y_c = float(np.mean([o.centre_m for o in side]))
@@ -503,7 +514,9 @@ class Behaviour:
                                "dead": sorted(n for n, d in self._dead.items() if d)})
         self._plan = {"odo_m": odo_m, "until_m": odo_m + max(near - self.p.replan_margin_m, 0.0), "far_m": far,
                       "sign": sign.label if sign else None, "memory": sign, "turn": self.turn,
-                      "dead_at_plan": bool(self._dead.get(self.turn))}
+                      "dead_at_plan": bool(self._dead.get(self.turn)),
+                      # the road's direction (odometry frame, radians CCW) the path is laid along
+                      "road_dir": None if heading is None else pose.heading + heading}
         if self.turn == "straight" and (not self.two_lane or (
                 len(sides) == 1 and self._bends_towards(lane, next(iter(sides)), self.p.bend_straight_on))):
             # a kerbed carriageway's edges carry on across a junction (the far edge stands in

@@ -739,6 +739,30 @@ def test_a_dead_end_road_turns_where_a_recent_frame_saw_its_side_road():
     assert drive(BehaviourParams(side_memory_m=0.0)) == "cruise"
 
 
+def test_a_plan_made_again_is_laid_along_the_road_the_plan_it_replaces_was():
+    # random looks, VIA style, seed 14, traced: a right turn planned at the start, its arm found
+    # dead 2.6 m on; the left turn made again along that frame's lane, read 11.6 degrees askew,
+    # swung the car right first and it left the road 1.9 m wide of the turn. No road direction is
+    # gathered while a plan is driven, so the plan made again had only that frame's lane.
+    b = Behaviour()
+    road = _straight_lane(4.0)
+
+    def view(right_dead: bool, n: float) -> JunctionView:
+        return JunctionView(Opening(n, n + 4.6, True, dead=False), Opening(n, n + 4.6, True, dead=right_dead),
+                            False, straight_dead=True)
+
+    b.step(0.0, OdoPose(0.0, 0.0), 0.0, 2.0, road, view(False, 11.7), two_lane=False)
+    assert b.turn == "right"
+    for i in (1, 2, 3):  # the right arm seen dead from closer (dead on two frames: planned again), the lane misread
+        y = 0.9 * i
+        lane = road if i < 2 else _straight_lane(4.0, heading=-0.2)
+        b.step(0.1 * i, OdoPose(0.0, y), y, 2.0, lane, view(True, 11.7 - y), two_lane=False)
+    assert b.turn == "left"
+    # the path's lead-in runs along the road (the odometry's +y), not 11.5 degrees right of it
+    lead = b.path[(b.path[:, 1] > 4.0) & (b.path[:, 1] < 7.0)]
+    assert len(lead) and np.abs(lead[:, 0] - lead[0, 0]).max() < 0.05
+
+
 def test_a_lone_opening_the_painted_lane_bent_toward_lately_is_a_bend():
     # random looks, traced: a left bend's lane bent 0.044-0.055 1/m for a third of a second, then
     # read straight on the frames of the bend's mouth; the bend's inside, a lone opening with the
