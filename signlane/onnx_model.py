@@ -59,7 +59,7 @@ def halved(image: np.ndarray, width: int, height: int) -> np.ndarray:
     2x2 average is OpenCV's fast path: 640x480 to 160x120 in 0.09 ms where one 4x area resize
     takes 0.32), within half a grey level of it (each halving rounds to uint8)."""
     h, w = image.shape[:2]
-    while w % (2 * width) == 0 and h % (2 * height) == 0:
+    while w >= 2 * width and h >= 2 * height and w % (2 * width) == 0 and h % (2 * height) == 0:
         w, h = w // 2, h // 2
         image = cv2.resize(image, (w, h), interpolation=cv2.INTER_AREA)
     return image
