@@ -480,15 +480,18 @@ class Behaviour:
         heading = self.road_heading.car_heading(odo_m, pose.heading)
         if heading is None and self.two_lane:
             heading = self.road_heading.car_heading(odo_m, pose.heading, self.p.painted_heading_spread)
-        # a plan made again (news before the junction) is for the same road: where the road's
-        # direction is not known now, the one the plan it replaces was laid along, not this
-        # frame's lane. The road's direction gathers no samples while a plan is driven (random
-        # looks, VIA style, seed 14, traced: a right turn planned at the start, its arm found dead
-        # 2.6 m on; the left turn made again along a frame's lane read 11.6 degrees askew (the
-        # frames before it: from 3.7 degrees one way to 13.6 the other), and the car swung right
-        # first and left the road 1.9 m wide of the turn)
+        # a plan made again (news before the junction) on a kerbed carriageway is for the same
+        # road: where the road's direction is not known now, the one the plan it replaces was
+        # laid along, not this frame's lane. The road's direction gathers no samples while a
+        # plan is driven (random looks, VIA style, seed 14, traced: a right turn planned at the
+        # start, its arm found dead 2.6 m on; the left turn made again along a frame's lane read
+        # 11.6 degrees askew (the frames before it: from 3.7 degrees one way to 13.6 the other),
+        # and the car swung right first and left the road 1.9 m wide of the turn). Not on a
+        # painted road, whose direction comes from its median up to painted_heading_spread first:
+        # a painted plan's own direction can be a bend's frame (dev seed 105: a straight plan in a
+        # left bend, made again as a right turn along it, left the road; along its frame's lane not)
         again = self._plan if self._plan is not None and odo_m <= self._plan["until_m"] else None
-        if heading is None and again is not None and again["road_dir"] is not None:
+        if heading is None and not self.two_lane and again is not None and again["road_dir"] is not None:
             heading = float(wrap_pi(again["road_dir"] - pose.heading))
         heading = heading if heading is not None else (lane.heading if lane.found else None)
         side = [_along_road(o, heading) for o in side]
