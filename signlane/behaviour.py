@@ -16,6 +16,7 @@ by `max_speed`; there are no brakes, so slowing is coasting and stops are planne
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -133,9 +134,10 @@ class Behaviour:
         self._dead: dict[str, bool] = {}  # dead-end verdicts of the openings ahead (see _remember_dead_ends)
         self._votes: dict[str, list[int]] = {}  # per way: [frames judging it dead, frames judging it not]
         self._dead_seen_m = -1e9  # odometer at the last frame with an opening
-        self._far_sides: list[tuple[int, float, str, Opening]] = []  # (frame, odometer, side, opening): closed openings seen
-        self._frame = 0
-        self._bends: list[tuple[float, float, float]] = []  # (odometer, bend right, bend left) of the lanes lately (1/m)
+        # (odometer, side, opening): the closed openings of the frames before this one, oldest
+        # first (at most 200: a car standing still keeps adding at one odometer reading)
+        self._far_sides: deque[tuple[float, str, Opening]] = deque(maxlen=200)
+        self._bends: deque[tuple[float, LaneEstimate]] = deque(maxlen=200)  # (odometer, lane found) lately
         self._plan: dict | None = None  # the last junction plan, while it may still be made again
         self._epoch = 0  # junctions passed
         self.signs: list[SignMemory] = []
@@ -197,7 +199,6 @@ class Behaviour:
         """-> (steering [-1, 1], throttle [0, 1], state). `two_lane`: a painted road driven on its
         right lane (False: a kerbed carriageway driven in its middle)."""
         self.two_lane = two_lane
-        self._frame += 1
         # forget signs left far behind, and those dealt with once passed (out of view: a memory of
         # them could only swallow a new sign at the place dead reckoning drifts them to)
         self.signs = [m for m in self.signs if self._ahead(pose, m) > (-2.0 if m.done else -self.p.instruction_range_m)]
@@ -208,11 +209,11 @@ class Behaviour:
             self._remember_bend(lane, odo_m)
         if junction is not None and self._reconsider(pose, odo_m, junction):
             self.path, self.cooldown_until_m = None, -1.0  # plan this junction again, with what is known now
-        if junction is not None:
-            self._remember_far_sides(junction, odo_m)
         if self.path is None and junction is not None and odo_m > self.cooldown_until_m:
             view = self._with_remembered_sides(self._without_unseen_cuts(junction, odo_m), junction, odo_m)
             self._plan_junction(pose, lane, view, odo_m)
+        if junction is not None:
+            self._remember_far_sides(junction, odo_m)  # (after planning: for the frames to come)
         if self.path is not None:
             steering, throttle, state = self._junction_step(pose, odo_m, speed, lane)
             stop = self._stop(t, pose, speed)  # a stop sign before the junction still holds
@@ -325,16 +326,19 @@ class Behaviour:
         return max(path_bend_towards(lane.path_m, self.p.curve_preview_m, towards), towards * lane.curvature)
 
     def _remember_bend(self, lane: LaneEstimate, odo_m: float) -> None:
-        self._bends = [b for b in self._bends[-200:] if b[0] >= odo_m - self.p.bend_memory_m]
+        # the lanes themselves: their bends are measured only at a plan that asks (_bent_lately)
+        _forget_before(self._bends, odo_m - self.p.bend_memory_m)
         if lane.found:
-            self._bends.append((odo_m, self._bend(lane, 1.0), self._bend(lane, -1.0)))
+            self._bends.append((odo_m, lane))
 
     def _bent_lately(self, way: str, odo_m: float) -> bool:
         """Did the lane bend towards `way` as sharply as a bend on a frame of the last bend_memory_m?"""
         if way not in ("left", "right"):
             return False
-        i = 1 if way == "right" else 2
-        return any(b[i] > self.p.bend_not_junction for b in self._bends if b[0] >= odo_m - self.p.bend_memory_m)
+        towards = 1.0 if way == "right" else -1.0
+        # (odometer-checked: a plan made again comes on a frame that remembered no lane)
+        return any(self._bend(lane, towards) > self.p.bend_not_junction
+                   for at_m, lane in self._bends if at_m >= odo_m - self.p.bend_memory_m)
 
     def _bends_towards(self, lane: LaneEstimate, way: str, sharper_than: float | None = None) -> bool:
         """Does the lane bend towards `way` ("left"/"right") as sharply as a bend, not a road
@@ -376,10 +380,8 @@ class Behaviour:
 
     def _remember_far_sides(self, j: JunctionView, odo_m: float) -> None:
         """This frame's closed openings, for _without_unseen_cuts and _with_remembered_sides."""
-        # (at most the last 200: a car standing still keeps adding at one odometer reading)
-        keep_m = max(self.p.cut_seen_m, self.p.side_memory_m)
-        self._far_sides = [f for f in self._far_sides[-200:] if f[1] >= odo_m - keep_m]
-        self._far_sides += [(self._frame, odo_m, side, o) for side, o in _sides(j).items()]
+        _forget_before(self._far_sides, odo_m - max(self.p.cut_seen_m, self.p.side_memory_m))
+        self._far_sides.extend((odo_m, side, o) for side, o in _sides(j).items())
 
     def _with_remembered_sides(self, j: JunctionView, seen: JunctionView, odo_m: float) -> JunctionView:
         """`j` with the side openings it lacks where the last frames saw them, on a frame that
@@ -391,10 +393,10 @@ class Behaviour:
         for side in ("left", "right"):
             if getattr(j, side) is not None:
                 continue
-            before = [f for f in self._far_sides if f[0] < self._frame and f[2] == side and not f[3].cut
-                      and f[1] >= odo_m - self.p.side_memory_m]
+            before = [(at_m, o) for at_m, s, o in self._far_sides
+                      if s == side and not o.cut and at_m >= odo_m - self.p.side_memory_m]
             if before:
-                _, at_m, _, o = max(before, key=lambda f: f[0])  # the latest frame's
+                at_m, o = before[-1]  # the latest frame's
                 d = odo_m - at_m
                 if o.far_m - d > 0.0:  # its far side still ahead
                     add[side] = replace(o, near_m=o.near_m - d, far_m=o.far_m - d)
@@ -405,9 +407,9 @@ class Behaviour:
         drop = {}
         for side, o in (("left", j.left), ("right", j.right)):
             if o is not None and o.cut and not any(
-                    f[0] < self._frame and f[2] == side and f[1] >= odo_m - self.p.cut_seen_m
-                    and abs(f[3].far_m - (odo_m - f[1]) - o.far_m) <= self.p.cut_far_m
-                    for f in self._far_sides):
+                    s == side and at_m >= odo_m - self.p.cut_seen_m
+                    and abs(seen.far_m - (odo_m - at_m) - o.far_m) <= self.p.cut_far_m
+                    for at_m, s, seen in self._far_sides):
                 drop[side] = None
         return replace(j, **drop) if drop else j
 
@@ -573,6 +575,12 @@ class Behaviour:
 
 _PATH_STEP_M = 0.25  # junction paths are sampled this often
 _TAIL_X = np.arange(_PATH_STEP_M, 12.0, _PATH_STEP_M)  # a turn's straight tail out of its arc, metres
+
+
+def _forget_before(memory: deque, odo_m: float) -> None:
+    """Drop a memory's entries, (odometer, ...) oldest first, from before the odometer odo_m."""
+    while memory and memory[0][0] < odo_m:
+        memory.popleft()
 
 
 def _sides(j: JunctionView) -> dict[str, Opening]:
