@@ -348,6 +348,15 @@ class Behaviour:
         bend = self._bend(lane, 1.0 if way == "right" else -1.0)
         return bend > (self.p.bend_not_junction if sharper_than is None else sharper_than)
 
+    def _bend_inside(self, lane: LaneEstimate, way: str, odo_m: float) -> bool:
+        """Is a lone opening towards `way` the inside of a painted bend: the lane bends towards it
+        (bend_straight_on), or, on a frame that found no lane, it bent so lately (_bent_lately)?
+        (random looks, traced twice: a bend's lane lost on the frame its inside was planned as a
+        crossing straight on, and the path laid straight along the car left the road)"""
+        if lane.found:
+            return self._bends_towards(lane, way, self.p.bend_straight_on)
+        return self._bent_lately(way, odo_m)
+
     def _bend_view(self, j: JunctionView, lane: LaneEstimate) -> bool:
         """A view of a bend, not a junction: one opening, the road not going on straight, and the
         lane bending towards the opening. Its dead-end verdicts are not a junction's (via_town's
@@ -522,8 +531,8 @@ class Behaviour:
                       "dead_at_plan": bool(self._dead.get(self.turn)),
                       # the road's direction (odometry frame, radians CCW) the path is laid along
                       "road_dir": None if heading is None else pose.heading + heading}
-        if self.turn == "straight" and (not self.two_lane or (
-                len(sides) == 1 and self._bends_towards(lane, next(iter(sides)), self.p.bend_straight_on))):
+        if self.turn == "straight" and (not self.two_lane or (len(sides) == 1 and self._bend_inside(
+                lane, next(iter(sides)), odo_m))):
             # a kerbed carriageway's edges carry on across a junction (the far edge stands in
             # for the open one), as a painted bend's lane does past a lone opening on its inside:
             # keep following it, and judge no junction until past this one
