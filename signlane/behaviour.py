@@ -349,10 +349,11 @@ class Behaviour:
         return bend > (self.p.bend_not_junction if sharper_than is None else sharper_than)
 
     def _bend_inside(self, lane: LaneEstimate, way: str, odo_m: float) -> bool:
-        """Is a lone opening towards `way` the inside of a painted bend: the lane bends towards it
-        (bend_straight_on), or, on a frame that found no lane, it bent so lately (_bent_lately)?
-        (random looks, traced twice: a bend's lane lost on the frame its inside was planned as a
-        crossing straight on, and the path laid straight along the car left the road)"""
+        """Is a lone opening towards `way` the inside of a painted bend: this frame's lane bends
+        towards it (bend_straight_on), or, on a frame that found no lane, a frame of the last
+        bend_memory_m saw it bend towards it as sharply as a bend (_bent_lately, bend_not_junction)?
+        (random looks, seeds 3 and 10, traced: a bend's lane lost on the frame its inside was
+        planned as a crossing straight on, and the path laid straight along the car left the road)"""
         if lane.found:
             return self._bends_towards(lane, way, self.p.bend_straight_on)
         return self._bent_lately(way, odo_m)
