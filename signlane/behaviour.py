@@ -78,6 +78,10 @@ class BehaviourParams:
     # dev seed 100, traced: a T's right arm seen on one frame in ten, its left arm cut on
     # another; no plan was made, the car drove into the T's mouth and off the road)
     side_memory_m: float = 4.0
+    # on a painted road a junction is planned with its side roads' ends where the frames of the
+    # last steady_m driven saw them (their medians): one frame's reading of a far edge can be
+    # metres off (Behaviour._steadied)
+    steady_m: float = 4.0
     instruction_range_m: float = 40.0  # a turn sign applies to a junction within this distance after it
     sign_slack_m: float = 2.0  # a sign placed this much past a junction's far side (misjudged distance) still counts
     dead_memory_m: float = 6.0  # dead-end verdicts are forgotten this far after the last opening seen
@@ -211,7 +215,7 @@ class Behaviour:
             self.path, self.cooldown_until_m = None, -1.0  # plan this junction again, with what is known now
         if self.path is None and junction is not None and odo_m > self.cooldown_until_m:
             view = self._with_remembered_sides(self._without_unseen_cuts(junction, odo_m), junction, odo_m)
-            self._plan_junction(pose, lane, view, odo_m)
+            self._plan_junction(pose, lane, self._steadied(view, odo_m) if two_lane else view, odo_m)
         if junction is not None:
             self._remember_far_sides(junction, odo_m)  # (after planning: for the frames to come)
         if self.path is not None:
@@ -390,7 +394,7 @@ class Behaviour:
 
     def _remember_far_sides(self, j: JunctionView, odo_m: float) -> None:
         """This frame's closed openings, for _without_unseen_cuts and _with_remembered_sides."""
-        _forget_before(self._far_sides, odo_m - max(self.p.cut_seen_m, self.p.side_memory_m))
+        _forget_before(self._far_sides, odo_m - max(self.p.cut_seen_m, self.p.side_memory_m, self.p.steady_m))
         self._far_sides.extend((odo_m, side, o) for side, o in _sides(j).items())
 
     def _with_remembered_sides(self, j: JunctionView, seen: JunctionView, odo_m: float) -> JunctionView:
@@ -411,6 +415,24 @@ class Behaviour:
                 if o.far_m - d > 0.0:  # its far side still ahead
                     add[side] = replace(o, near_m=o.near_m - d, far_m=o.far_m - d)
         return replace(j, **add) if add else j
+
+    def _steadied(self, j: JunctionView, odo_m: float) -> JunctionView:
+        """`j` with each closed side opening's ends the medians of where this frame and the frames
+        of the last steady_m driven saw them (moved on by the metres driven since), over the
+        openings on that side that overlap this one; its near end only from openings whose near
+        end was seen (not cut). A side road's ends are fixed places on the ground, but a road
+        model reads its far side patchily (random looks, traced: a crossing's far edge read 3.4 m
+        early on the frame that planned the turn, 0-1 m off on the frames of the 4 m before it;
+        the turn's arc began early and cut the corner across the verge)."""
+        steady = {}
+        for side, o in _sides(j).items():
+            seen = [o] + [replace(b, near_m=b.near_m - (odo_m - at_m), far_m=b.far_m - (odo_m - at_m))
+                          for at_m, s, b in self._far_sides if s == side and at_m >= odo_m - self.p.steady_m]
+            seen = [b for b in seen if b.near_m < o.far_m and b.far_m > o.near_m]
+            nears = [b.near_m for b in seen if not b.cut]
+            steady[side] = replace(o, near_m=float(np.median(nears)) if nears else o.near_m,
+                                   far_m=float(np.median([b.far_m for b in seen])))
+        return replace(j, **steady) if steady else j
 
     def _without_unseen_cuts(self, j: JunctionView, odo_m: float) -> JunctionView:
         """The view without its cut openings that no earlier frame saw (see cut_seen_m)."""

@@ -13,13 +13,14 @@ Ground frame: metres, x right of the car, y ahead, with the car on its lane's ce
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
 
 from signlane.camera import BirdsEye, Camera
 from signlane.lanes.geometry import polyfit
+from signlane.lanes.road_colour import RoadColourParams, RoadColours, check_road_colour
 from signlane.lanes.road_edges import lab_box
 from signlane.order_stats import median_rows
 
@@ -87,6 +88,9 @@ class JunctionParams:
     outer_m: float = 8.5
     max_outer_road: float = 0.75
     outer_memory: float = 0.95
+    # a road model's road is checked against the colours of this world's road and verge
+    # (signlane.lanes.road_colour)
+    colour: RoadColourParams = field(default_factory=RoadColourParams)
 
 
 class JunctionDetector:
@@ -106,10 +110,16 @@ class JunctionDetector:
         self._outer = self.visible.copy()
         self._outer[:, self._col(-p.outer_m):self._col(p.outer_m) + 1] = False
         self.outer_share: float | None = None  # running average of outer_road_share over frames
+        self.colours = RoadColours()  # of this world's road and verge, for a road model's road
+        # the car's lane up to 9 m ahead, whose colour is the road's (the near rows of a tall
+        # camera's view lie 3-4 m out: the colour rules' 3 m patch shows only a corner of it)
+        self._ahead = np.zeros(self.visible.shape, bool)
+        self._ahead[int((p.y_range_m[1] - 9.0) * p.px_per_m):, self._col(-1.2):self._col(1.2)] = True
 
     def reset(self) -> None:
         """Forget the frames seen so far (a new drive, perhaps in another world)."""
         self.outer_share = None
+        self.colours = RoadColours()
 
     def _col(self, x_m: float) -> int:
         p = self.p
@@ -120,12 +130,16 @@ class JunctionDetector:
 
     def road_mask(self, image_bgr: np.ndarray, maps=None) -> np.ndarray:
         """uint8 (h, w) bird's-eye mask, 255 where the ground looks like the road ahead of the car;
-        with a road model's maps of the frame (seg_model.FrameMaps), where the model sees road or paint."""
+        with a road model's maps of the frame (seg_model.FrameMaps), where the model sees road or paint
+        and the colour is not the verge's (RoadColour)."""
         p = self.p
+        bev = self.bev.warp(image_bgr)
         if maps is not None:
-            road = maps.road_in(self.bev.image_to_bev_h(), self.bev.size)[0]
-            return cv2.morphologyEx((road & self.visible).astype(np.uint8) * 255, cv2.MORPH_OPEN, _OPEN_KERNEL)
-        lab8 = cv2.cvtColor(self.bev.warp(image_bgr), cv2.COLOR_BGR2LAB)
+            road, paint = maps.road_in(self.bev.image_to_bev_h(), self.bev.size)
+            road, self.colours = check_road_colour(road & self.visible, bev, self._ahead, self.visible, self.colours,
+                                                   p.colour, keep=paint)
+            return cv2.morphologyEx(road.astype(np.uint8) * 255, cv2.MORPH_OPEN, _OPEN_KERNEL)
+        lab8 = cv2.cvtColor(bev, cv2.COLOR_BGR2LAB)
         y0, y1 = p.y_range_m[0], p.y_range_m[0] + 3.0
         rows = slice(int((p.y_range_m[1] - y1) * p.px_per_m), int((p.y_range_m[1] - y0) * p.px_per_m))
         cols = slice(self._col(-0.9), self._col(0.9))

@@ -741,6 +741,32 @@ def test_a_cut_opening_whose_far_side_no_earlier_frame_saw_is_not_a_side_road():
     assert drive(BehaviourParams(cut_far_m=1e9))[3] == "junction-straight"
 
 
+def test_a_painted_junction_is_planned_where_the_last_frames_saw_its_side_road():
+    # random looks with a road model, painted seed 18, traced: a crossing's right arm seen at
+    # 202.0-209.0 m of the odometer on the frames of the 4 m before the plan (far side 205.6-210.0),
+    # read 202.0-205.6 on the frame that planned the forced right turn. Laid from that frame
+    # alone, the turn's arc began 1.8 m early and cut the corner over the verge.
+    lane = _straight_lane(3.2)
+    far_ends = [209.0, 208.9, 206.0, 210.0, 209.9, 209.9]
+
+    def arc_start(params: BehaviourParams) -> float:
+        b = Behaviour(params)
+        for i, far in enumerate(far_ends + [205.6]):
+            odo = 186.6 + 0.6 * i
+            o = Opening(202.0 - odo, far - odo, True, dead=False)
+            b.step(0.1 * i, OdoPose(0.0, odo), odo, 4.0, lane, JunctionView(None, o, False, straight_dead=True))
+        assert b.path is not None, "the forced right turn is planned on the last frame"
+        turned = np.flatnonzero(b.path[:, 0] > 1e-3)
+        return float(b.path[turned[0], 1])
+
+    p = BehaviourParams()
+    y_c = 0.5 * (202.0 + float(np.median(far_ends + [205.6])))  # 205.5
+    assert arc_start(p) == pytest.approx(y_c - p.lane_width_m / 2 - p.right_radius_m, abs=0.3)
+    # this frame's reading alone: the arc begins where a 3.6 m side road's middle would put it
+    assert arc_start(BehaviourParams(steady_m=0.0)) == pytest.approx(
+        203.8 - p.lane_width_m / 2 - p.right_radius_m, abs=0.3)
+
+
 def test_a_dead_end_road_turns_where_a_recent_frame_saw_its_side_road():
     # random looks with a road model, dev seed 100, traced: a T reached along its stem, its right
     # arm seen on one frame 10 m out, then on no other; its left arm read as a cut opening once,

@@ -19,14 +19,16 @@ rules do not know): its lane is still the right half, not the whole carriageway.
 Given a road model's maps of the frame (`seg_model.FrameMaps`: `--set lanes.model=FILE`), the
 road and the paint are the model's, warped into the same view, instead of the colour rules:
 a verge that looks like road, or a look the rules do not know, no longer decides where the
-carriageway is. The scan, the fits and everything read from the scan (junctions) are the same.
+carriageway is. The model's road is checked against the colours this world's road and verge
+have shown so far (`road_colour`): verge the model takes for road, where its colour is the
+verge's, is not road. The scan, the fits and everything read from the scan (junctions) are the same.
 """
 from __future__ import annotations
 
 import bisect
 import itertools
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import cv2
 import numpy as np
@@ -34,6 +36,7 @@ import numpy as np
 from signlane.camera import BirdsEye, Camera, row_spans
 from signlane.lanes import register
 from signlane.lanes.geometry import Boundary, camera_for, estimate_from_fits, fit_boundary, slant
+from signlane.lanes.road_colour import RoadColourParams, RoadColours, check_road_colour
 from signlane.lanes.seg_model import FrameMaps
 from signlane.order_stats import median_rows
 from signlane.types import LaneEstimate
@@ -50,6 +53,9 @@ class RoadEdgesParams:
     px_per_m: float = 8.0
     lab_tol: tuple[float, float, float] = (26.0, 9.0, 9.0)
     shadow_floor: float = 0.35  # shadowed road keeps at least this share of the reference lightness
+    # a road model's road is checked against the colours of this world's road and verge
+    # (signlane.lanes.road_colour)
+    colour: RoadColourParams = field(default_factory=RoadColourParams)
     bright_l: float = 30.0  # paint: this much lighter than the road either side of it ...
     line_max_m: float = 0.6  # ... over a run narrower than this
     width_m: float = 4.0  # nominal carriageway width (VIA's); the measured one takes over
@@ -93,6 +99,7 @@ class RoadEdgesState:
     # the road showed a centre line and has been two lanes wide (two_lanes_m) ever since
     held: bool = False
     narrow_frames: int = 0  # well-seen frames in a row, up to the last, narrower than two_lanes_m
+    colours: RoadColours = RoadColours()  # of this world's road and verge, for a road model's road
 
     @property
     def two_lane(self) -> bool:
@@ -157,17 +164,30 @@ def _patch_ahead(lab: np.ndarray, p: RoadEdgesParams) -> np.ndarray:
                        .reshape(-1, 3))
 
 
-def learned_road_mask(bev_bgr: np.ndarray, visible: np.ndarray, bev: BirdsEye, maps: FrameMaps, p: RoadEdgesParams):
+def learned_road_mask(bev_bgr: np.ndarray, visible: np.ndarray, bev: BirdsEye, maps: FrameMaps, p: RoadEdgesParams,
+                      colours: RoadColours = RoadColours()):
     """road_mask's outputs from a road model's maps instead of colour rules: (road, paint,
-    the patch ahead's Lab colour, Lab image). Paint lies on the road, so it is road too."""
+    the patch ahead's Lab colour, Lab image, the world's colours updated). Paint lies on the
+    road, so it is road too; road whose colour is the verge's is not (road_colour)."""
     lab8 = cv2.cvtColor(bev_bgr, cv2.COLOR_BGR2LAB)
     lab = lab8.astype(np.int16)
     road, paint = maps.road_in(bev.image_to_bev_h(), bev.size)
     # paint: the model's, and lines by their own contrast (as without a model): a faint dashed
     # centre line the model misses still tells a two-lane road from a kerbed one
     paint = (paint | (_lines(lab8, p) > 0)) & visible
+    road, colours = check_road_colour(road & visible, bev_bgr, _lane_ahead(road.shape, p), visible, colours,
+                                      p.colour, keep=paint)
     road = cv2.morphologyEx((road | paint).view(np.uint8) & visible.view(np.uint8), cv2.MORPH_OPEN, _OPEN) > 0
-    return road, paint, _patch_ahead(lab, p), lab
+    return road, paint, _patch_ahead(lab, p), lab, colours
+
+
+def _lane_ahead(shape: tuple[int, int], p: RoadEdgesParams) -> np.ndarray:
+    """bool bird's-eye mask of the car's lane over the first 6 m of the view (the road's colour)."""
+    h, w = shape
+    k = p.px_per_m
+    out = np.zeros(shape, bool)
+    out[h - int(6 * k):, w // 2 - int(1.2 * k): w // 2 + int(1.2 * k)] = True
+    return out
 
 
 def lab_box(v) -> tuple[int, int, int]:
@@ -356,10 +376,11 @@ def carriageway(image_bgr: np.ndarray, cam: Camera, p: RoadEdgesParams, state: R
     bev = _bev(cam, p, state)
     visible = bev.seen
     bev_bgr = bev.warp(image_bgr[:, :, :3])
+    colours = state.colours
     if maps is None:
         road, bright, ref, lab_img = road_mask(bev_bgr, visible, p, state.road_lab)
     else:
-        road, bright, ref, lab_img = learned_road_mask(bev_bgr, visible, bev, maps, p)
+        road, bright, ref, lab_img, colours = learned_road_mask(bev_bgr, visible, bev, maps, p, state.colours)
     scan = replace(scan_edges(road, visible, bev, p, state.width_m or p.width_m), lab=lab_img)
     left = _fit(np.column_stack([scan.run_l, scan.y])[scan.ok_l], p)
     right = _fit(np.column_stack([scan.run_r, scan.y])[scan.ok_r], p)
@@ -380,7 +401,8 @@ def carriageway(image_bgr: np.ndarray, cam: Camera, p: RoadEdgesParams, state: R
         mask = maps.frame_mask(maps.road, w, h)
     else:
         mask = drivable_mask(bev, road) if unwarp and (left is not None or right is not None) else None
-    return left, right, scan.width_m, RoadEdgesState(scan.width_m, memory, bev, scan, lab, held, narrow), mask
+    return left, right, scan.width_m, RoadEdgesState(scan.width_m, memory, bev, scan, lab, held, narrow,
+                                                                colours), mask
 
 
 def drivable_mask(bev: BirdsEye, road: np.ndarray) -> np.ndarray:
