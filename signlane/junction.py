@@ -131,7 +131,7 @@ class JunctionDetector:
     def road_mask(self, image_bgr: np.ndarray, maps=None) -> np.ndarray:
         """uint8 (h, w) bird's-eye mask, 255 where the ground looks like the road ahead of the car;
         with a road model's maps of the frame (seg_model.FrameMaps), where the model sees road or paint
-        and the colour is not the verge's (RoadColour)."""
+        and the colour is not the verge's (signlane.lanes.road_colour)."""
         p = self.p
         bev = self.bev.warp(image_bgr)
         if maps is not None:
