@@ -29,6 +29,7 @@ import bisect
 import itertools
 import math
 from dataclasses import dataclass, field, replace
+from functools import lru_cache
 
 import cv2
 import numpy as np
@@ -165,7 +166,7 @@ def _patch_ahead(lab: np.ndarray, p: RoadEdgesParams) -> np.ndarray:
 
 
 def learned_road_mask(bev_bgr: np.ndarray, visible: np.ndarray, bev: BirdsEye, maps: FrameMaps, p: RoadEdgesParams,
-                      colours: RoadColours = RoadColours()):
+                      colours: RoadColours):
     """road_mask's outputs from a road model's maps instead of colour rules: (road, paint,
     the patch ahead's Lab colour, Lab image, the world's colours updated). Paint lies on the
     road, so it is road too; road whose colour is the verge's is not (road_colour)."""
@@ -175,18 +176,20 @@ def learned_road_mask(bev_bgr: np.ndarray, visible: np.ndarray, bev: BirdsEye, m
     # paint: the model's, and lines by their own contrast (as without a model): a faint dashed
     # centre line the model misses still tells a two-lane road from a kerbed one
     paint = (paint | (_lines(lab8, p) > 0)) & visible
-    road, colours = check_road_colour(road & visible, bev_bgr, _lane_ahead(road.shape, p), visible, colours,
-                                      p.colour, keep=paint)
+    road, colours = check_road_colour(road & visible, bev_bgr, _lane_ahead(road.shape, p.px_per_m), visible,
+                                      colours, p.colour, keep=paint)
     road = cv2.morphologyEx((road | paint).view(np.uint8) & visible.view(np.uint8), cv2.MORPH_OPEN, _OPEN) > 0
     return road, paint, _patch_ahead(lab, p), lab, colours
 
 
-def _lane_ahead(shape: tuple[int, int], p: RoadEdgesParams) -> np.ndarray:
-    """bool bird's-eye mask of the car's lane over the first 6 m of the view (the road's colour)."""
+@lru_cache(maxsize=4)
+def _lane_ahead(shape: tuple[int, int], px_per_m: float) -> np.ndarray:
+    """bool bird's-eye mask (read-only, made once per view) of the car's lane over the first 6 m
+    of the view: where the road's colour is learned."""
     h, w = shape
-    k = p.px_per_m
     out = np.zeros(shape, bool)
-    out[h - int(6 * k):, w // 2 - int(1.2 * k): w // 2 + int(1.2 * k)] = True
+    out[h - int(6 * px_per_m):, w // 2 - int(1.2 * px_per_m): w // 2 + int(1.2 * px_per_m)] = True
+    out.setflags(write=False)
     return out
 
 
@@ -376,11 +379,11 @@ def carriageway(image_bgr: np.ndarray, cam: Camera, p: RoadEdgesParams, state: R
     bev = _bev(cam, p, state)
     visible = bev.seen
     bev_bgr = bev.warp(image_bgr[:, :, :3])
-    colours = state.colours
+    colours = state.colours  # (learned only from a road model's road)
     if maps is None:
         road, bright, ref, lab_img = road_mask(bev_bgr, visible, p, state.road_lab)
     else:
-        road, bright, ref, lab_img, colours = learned_road_mask(bev_bgr, visible, bev, maps, p, state.colours)
+        road, bright, ref, lab_img, colours = learned_road_mask(bev_bgr, visible, bev, maps, p, colours)
     scan = replace(scan_edges(road, visible, bev, p, state.width_m or p.width_m), lab=lab_img)
     left = _fit(np.column_stack([scan.run_l, scan.y])[scan.ok_l], p)
     right = _fit(np.column_stack([scan.run_r, scan.y])[scan.ok_r], p)
@@ -401,8 +404,8 @@ def carriageway(image_bgr: np.ndarray, cam: Camera, p: RoadEdgesParams, state: R
         mask = maps.frame_mask(maps.road, w, h)
     else:
         mask = drivable_mask(bev, road) if unwarp and (left is not None or right is not None) else None
-    return left, right, scan.width_m, RoadEdgesState(scan.width_m, memory, bev, scan, lab, held, narrow,
-                                                                colours), mask
+    new_state = RoadEdgesState(scan.width_m, memory, bev, scan, lab, held, narrow, colours)
+    return left, right, scan.width_m, new_state, mask
 
 
 def drivable_mask(bev: BirdsEye, road: np.ndarray) -> np.ndarray:
