@@ -1,7 +1,7 @@
 """On a two-lane road the car keeps to the right lane when the look hides the road's paint:
 a road that has shown its centre line stays a two-lane road while it stays two lanes wide
 (road_edges: RoadEdgesState.held), and a paint lane left of the carriageway's middle is the
-oncoming lane, not the car's (auto: _keeps_right). Traced on random looks, where a worn centre
+oncoming lane, not the car's, and one centred beyond the right lane is the verge (auto: _keeps_right). Traced on random looks, where a worn centre
 line made the car steer to the carriageway's middle, and a worn right edge line let the paint
 method take the far edge line and the centre line for the car's lane lines."""
 from dataclasses import replace
@@ -89,6 +89,13 @@ def test_the_paint_lane_is_the_cars_only_in_the_right_half_of_the_carriageway():
         assert _keeps_right(_lane_at(-car_m), scan, params)  # the right lane: its centre 1.6 m right of the middle
         assert not _keeps_right(_lane_at(-car_m - 3.2), scan, params)  # the oncoming lane
         assert not _keeps_right(_lane_at(-car_m - 1.6), scan, params)  # a "lane" astride the centre line
+        # the verge beyond the right edge line, taken for a lane whose left line is the edge line
+        # (traced out of a bend on random looks: the car ran along the edge line on the grass)
+        assert not _keeps_right(_lane_at(-car_m + 3.2), scan, params)
+        # a lane centred 3.1 m right of the middle (share 0.42), still inside the right edge
+        assert not _keeps_right(_lane_at(-car_m + 1.5), scan, params)
+        assert _keeps_right(_lane_at(-car_m + 1.5), scan, replace(params, keep_inside_share=1.0))
+        assert _keeps_right(_lane_at(-car_m + 0.6), scan, params)  # the right lane, read 0.6 m off
         # where the carriageway was not seen, it cannot tell: the paint stands
         assert _keeps_right(_lane_at(-car_m - 3.2), None, params)
 
@@ -102,3 +109,18 @@ def test_a_carriageway_narrower_than_two_lanes_has_no_centre_line():
     assert not any(kinds) and state.centre_paint < 0.01
     kinds, _ = _drive(narrow, params=replace(P, centre_line_from_m=0.0))
     assert kinds[-1]  # (a centre line when any width may have one)
+
+
+def test_a_paint_lane_centred_beyond_the_right_edge_is_the_verge_where_the_left_edge_is_out_of_view():
+    # the road's left edge comes into the near view only 9 m ahead (traced out of bends on random
+    # looks: the car near the right edge line, the paint lane on the grass beyond it): the width's
+    # share cannot tell, the right edge (1.8 m right of the car) can
+    _, state = _drive([_frame(-9.0, 1.8, None, 0.2 * i) for i in range(5)])
+    scan, params = state.scan, AutoParams()
+    both = np.flatnonzero(scan.ok_l & scan.ok_r)
+    assert scan.y[both[0]] > 8.5  # no near row with both edges seen
+    assert _keeps_right(_lane_at(0.0), scan, params) and _keeps_right(_lane_at(1.0), scan, params)
+    assert not _keeps_right(_lane_at(2.5), scan, params)  # centred 0.7 m past the edge
+    assert not _keeps_right(_lane_at(3.4), scan, params)  # the edge line taken for its left line
+    # the right edge needs min_rows rows seen to tell
+    assert _keeps_right(_lane_at(3.4), scan, replace(params, road=replace(params.road, min_rows=1000)))

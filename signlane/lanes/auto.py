@@ -5,9 +5,11 @@ line is painted along its middle. On a kerbed carriageway with no centre line (V
 lane is the carriageway and the car keeps its middle. On a two-lane road with a centre line the
 lane is the right one, from the paint (`sliding-window`), or, where the paint is not found, the
 right half of the carriageway; paint whose lane does not lie in the carriageway's right half
-(the oncoming lane, taken where the right edge line is worn away) is not found. A wide road without a centre line whose lane lines divide it
-(a highway) is told from a kerbed one by the paint method finding, frame after frame, a lane
-clearly narrower than the carriageway: then the lane is that one. `LaneEstimate.basis` says which
+(the oncoming lane, taken where the right edge line is worn away), or lies beyond the right
+lane (the verge past the right edge line, the edge line taken for a lane's left line), is not
+found. A wide road without a centre line whose lane lines divide it (a highway) is told from a
+kerbed one by the paint method finding, frame after frame, a lane clearly narrower than the
+carriageway: then the lane is that one. `LaneEstimate.basis` says which
 ("edges" or "paint"). Where one look for lane paint cannot make a kerbed road a lane road on
 its frame (the running share is too low for one more sighting to lift it over the bar), the
 frame's lane is the carriageway whatever the look finds, and the look is made after the frame's
@@ -77,8 +79,11 @@ class AutoParams:
     # right of the carriageway's middle by at least this share of the carriageway's width (the
     # right lane's centre is about a quarter of the width right of the middle: halfway there),
     # measured over keep_right_m of the carriageway from its nearest row with both edges seen,
-    # that row no further than keep_right_from_m ahead
+    # that row no further than keep_right_from_m ahead; and no further right than keep_inside_share
+    # (as far past the right lane's centre: a lane centred beyond that is the verge beyond the right
+    # edge line, taken for a lane where the paint method mistook the edge line for the centre line)
     keep_right_share: float = 0.125
+    keep_inside_share: float = 0.375
     keep_right_m: float = 5.0
     keep_right_from_m: float = 10.0
     # on a road with a centre line, the carriageway of a frame whose paint is found is scanned
@@ -296,17 +301,21 @@ def _seen(est: LaneEstimate, params: AutoParams, width: float, scan, lanes_seen:
 
 def _keeps_right(est: LaneEstimate, scan, params: AutoParams) -> bool:
     """Does a paint estimate's lane lie in the right half of a two-lane carriageway (`scan`, its
-    RoadScan: this frame's, or with edges_after_answer the frame before's)? True where the scan
-    cannot tell (too few near rows with both edges seen). On a look whose edge line is worn away,
-    the paint method can take the far edge line and the centre line for the car's lane lines."""
+    RoadScan: this frame's, or with edges_after_answer the frame before's), centred near the right
+    lane's centre? True where the scan cannot tell (too few near rows with both edges seen). On a
+    look whose edge line is worn away, the paint method can take the far edge line and the centre
+    line for the car's lane lines; out of a bend, the right edge line and the verge beyond it."""
     if scan is None or len(scan.y) == 0 or est.path_m is None or len(est.path_m) < 2:
         return True
+    traced = (scan.y >= est.path_m[0, 1]) & (scan.y <= est.path_m[-1, 1])  # where the paint lane was traced
+    if _beyond_right_edge(est, scan, np.flatnonzero(scan.ok_r & traced), params):
+        return False
     both = np.flatnonzero(scan.ok_l & scan.ok_r)
     # (a wide road's far edge comes into view some metres ahead: the rows from there on)
     if len(both) == 0 or scan.y[both[0]] > params.keep_right_from_m:
         return True
     near = both[scan.y[both] <= scan.y[both[0]] + params.keep_right_m]
-    near = near[(scan.y[near] >= est.path_m[0, 1]) & (scan.y[near] <= est.path_m[-1, 1])]  # where the paint lane was traced
+    near = near[traced[near]]
     if len(near) < params.road.min_rows:
         return True
     mid = 0.5 * (scan.run_l[near] + scan.run_r[near])
@@ -315,7 +324,20 @@ def _keeps_right(est: LaneEstimate, scan, params: AutoParams) -> bool:
         return True
     ys = scan.y[near]
     centre = np.interp(ys, est.path_m[:, 1], est.path_m[:, 0])  # the paint lane's centre on those rows
-    return float(np.median(centre - mid)) >= params.keep_right_share * width
+    share = float(np.median(centre - mid)) / width
+    return params.keep_right_share <= share <= params.keep_inside_share
+
+
+def _beyond_right_edge(est: LaneEstimate, scan, rows: np.ndarray, params: AutoParams) -> bool:
+    """Is a paint lane centred beyond the carriageway's right edge, over the nearest keep_right_m
+    of the `rows` where that edge is seen? The verge beyond a right edge line, taken for a lane
+    whose left line is the edge line: with the car near the right edge, the carriageway's left
+    edge comes into view only far ahead, so the width's share cannot tell, but the right edge can."""
+    rows = rows[scan.y[rows] <= scan.y[rows[0]] + params.keep_right_m] if len(rows) else rows
+    if len(rows) < params.road.min_rows:
+        return False
+    centre = np.interp(scan.y[rows], est.path_m[:, 1], est.path_m[:, 0])
+    return float(np.median(centre - scan.run_r[rows])) > 0.0
 
 
 def road_state(state) -> RoadEdgesState | None:
