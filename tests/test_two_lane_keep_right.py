@@ -1,9 +1,11 @@
 """On a two-lane road the car keeps to the right lane when the look hides the road's paint:
 a road that has shown its centre line stays a two-lane road while it stays two lanes wide
-(road_edges: RoadEdgesState.held), and a paint lane left of the carriageway's middle is the
-oncoming lane, not the car's, and one centred beyond the right lane is the verge (auto: _keeps_right). Traced on random looks, where a worn centre
-line made the car steer to the carriageway's middle, and a worn right edge line let the paint
-method take the far edge line and the centre line for the car's lane lines."""
+(road_edges: RoadEdgesState.held), a paint lane left of the carriageway's middle is the
+oncoming lane, not the car's, and one centred beyond the right lane is the verge (auto:
+_keeps_right). Traced on random looks, where a worn centre line made the car steer to the
+carriageway's middle, a worn right edge line let the paint method take the far edge line and the
+centre line for the car's lane lines, and out of bends it took the right edge line for the
+lane's left line and put the lane on the grass."""
 from dataclasses import replace
 
 import numpy as np
