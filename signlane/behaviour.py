@@ -411,9 +411,9 @@ class Behaviour:
                       if s == side and not o.cut and at_m >= odo_m - self.p.side_memory_m]
             if before:
                 at_m, o = before[-1]  # the latest frame's
-                d = odo_m - at_m
-                if o.far_m - d > 0.0:  # its far side still ahead
-                    add[side] = replace(o, near_m=o.near_m - d, far_m=o.far_m - d)
+                o = _moved_on(o, odo_m - at_m)
+                if o.far_m > 0.0:  # its far side still ahead
+                    add[side] = o
         return replace(j, **add) if add else j
 
     def _steadied(self, j: JunctionView, odo_m: float) -> JunctionView:
@@ -426,7 +426,7 @@ class Behaviour:
         the turn's arc began early and cut the corner across the verge)."""
         steady = {}
         for side, o in _sides(j).items():
-            seen = [o] + [replace(b, near_m=b.near_m - (odo_m - at_m), far_m=b.far_m - (odo_m - at_m))
+            seen = [o] + [_moved_on(b, odo_m - at_m)
                           for at_m, s, b in self._far_sides if s == side and at_m >= odo_m - self.p.steady_m]
             seen = [b for b in seen if b.near_m < o.far_m and b.far_m > o.near_m]
             nears = [b.near_m for b in seen if not b.cut]
@@ -613,6 +613,11 @@ def _forget_before(memory: deque, odo_m: float) -> None:
     """Drop a memory's entries, (odometer, ...) oldest first, from before the odometer odo_m."""
     while memory and memory[0][0] < odo_m:
         memory.popleft()
+
+
+def _moved_on(o: Opening, driven_m: float) -> Opening:
+    """An opening seen driven_m metres of odometer ago, placed relative to the car now."""
+    return replace(o, near_m=o.near_m - driven_m, far_m=o.far_m - driven_m)
 
 
 def _sides(j: JunctionView) -> dict[str, Opening]:
