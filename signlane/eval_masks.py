@@ -7,6 +7,9 @@ Pixels without a label (a dataset's 255s, signlane.label_masks) count nowhere: a
 there is neither right nor wrong. `iou` is the exact pixel IoU (no tolerance) over the labelled
 pixels. A road model (seg_model.ROAD_CLASSES) on a set with road masks (`drivable/<id>.png`,
 gen lanes --drivable) is also scored on the road surface: `drivable_iou`, exact pixel IoU.
+`recall_by_contrast` splits the labelled paint by how far it stands out of the ground around it
+in the image (ContrastRecall): what a model misses can be paint nobody could see (night, fog,
+glare), or paint it should have found.
 """
 from __future__ import annotations
 
@@ -31,9 +34,9 @@ class MaskCounts:
     inter: int = 0  # exact pixels: predicted and true
     union: int = 0  # predicted or true (labelled pixels only)
 
-    def add(self, pred: np.ndarray, true: np.ndarray, tol: int = 2, ignore: np.ndarray | None = None) -> None:
+    def add(self, pred: np.ndarray, true: np.ndarray, tol: int = 2, ignore: np.ndarray | None = None) -> np.ndarray:
         """pred, true: uint8 or bool (H, W), nonzero = marking; ignore: bool (H, W) pixels
-        without a label, or None (every pixel labelled)."""
+        without a label, or None (every pixel labelled). -> bool (H, W): the true pixels found."""
         k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * tol + 1, 2 * tol + 1))
         p, t = pred > 0, true > 0
         if ignore is not None:
@@ -41,10 +44,12 @@ class MaskCounts:
         self.inter += int(np.count_nonzero(p & t))
         self.union += int(np.count_nonzero(p | t))
         self.tp_pred += int(np.count_nonzero(p & (cv2.dilate(t.astype(np.uint8), k) > 0)))
-        self.tp_true += int(np.count_nonzero(t & (cv2.dilate(p.astype(np.uint8), k) > 0)))
+        found = t & (cv2.dilate(p.astype(np.uint8), k) > 0)
+        self.tp_true += int(np.count_nonzero(found))
         self.pred += int(np.count_nonzero(p))
         self.true += int(np.count_nonzero(t))
         self.frames += 1
+        return found
 
     def summary(self) -> dict:
         precision = self.tp_pred / max(self.pred, 1)
@@ -55,6 +60,45 @@ class MaskCounts:
     @property
     def iou(self) -> float:
         return self.inter / max(self.union, 1)
+
+
+CONTRAST_EDGES = (0, 4, 8, 16, 32, 64, 256)  # paint contrast bins, CIELAB lightness levels (0-255)
+
+
+@dataclass
+class ContrastRecall:
+    """Labelled paint pixels, and those found (within the tolerance), by their contrast: the
+    absolute difference between a paint pixel's lightness (CIELAB L, 0-255) and the mean
+    lightness of the labelled ground that is not paint within `box` px of it. Under about 4
+    levels the paint cannot be told from the road in the image at all."""
+
+    box: int = 15
+    paint: np.ndarray = None
+    found: np.ndarray = None
+
+    def __post_init__(self) -> None:
+        self.paint = np.zeros(len(CONTRAST_EDGES) - 1, np.int64)
+        self.found = np.zeros(len(CONTRAST_EDGES) - 1, np.int64)
+
+    def add(self, image_bgr: np.ndarray, true_ids: np.ndarray, found: np.ndarray) -> None:
+        """true_ids: uint8 (H, W) 0/1/255; found: bool (H, W), the true pixels found."""
+        light = cv2.cvtColor(image_bgr, cv2.COLOR_BGR2LAB)[:, :, 0].astype(np.float32)
+        ground = (true_ids == 0).astype(np.float32)
+        size = (self.box, self.box)
+        total = cv2.boxFilter(light * ground, -1, size, normalize=False)
+        count = cv2.boxFilter(ground, -1, size, normalize=False)
+        paint = (true_ids == 1) & (count > 0)  # (paint with no ground beside it: no contrast to measure)
+        contrast = np.abs(light - total / np.maximum(count, 1.0))[paint]
+        bins = np.clip(np.searchsorted(CONTRAST_EDGES, contrast, side="right") - 1, 0, len(self.paint) - 1)
+        self.paint += np.bincount(bins, minlength=len(self.paint))
+        self.found += np.bincount(bins, weights=found[paint], minlength=len(self.paint)).astype(np.int64)
+
+    def rows(self) -> list[dict]:
+        """Per contrast bin: its share of the paint, its recall, and its share of the paint missed."""
+        missed = self.paint - self.found
+        return [{"contrast": f"{lo}-{hi}", "paint_share": int(n) / max(int(self.paint.sum()), 1),
+                 "recall": int(f) / max(int(n), 1), "missed_share": int(m) / max(int(missed.sum()), 1)}
+                for lo, hi, n, f, m in zip(CONTRAST_EDGES[:-1], CONTRAST_EDGES[1:], self.paint, self.found, missed)]
 
 
 @dataclass
@@ -90,7 +134,7 @@ def eval_masks(data: str | Path, model: str | Path | None = None, tol: int = 2, 
     if not labels.is_file():
         raise ValueError(f"{root}: no labels.jsonl (not a lane dataset)")
     encoding = dataset_encoding(root)
-    counts, road = MaskCounts(), RoadCounts()
+    counts, road, contrast = MaskCounts(), RoadCounts(), ContrastRecall()
     recs = [json.loads(line) for line in labels.read_text().splitlines() if line.strip()]
     for rec in tqdm(recs, desc="eval masks", unit="frame", disable=not progress):
         img = cv2.imread(str(root / rec["image"]), cv2.IMREAD_COLOR)
@@ -100,12 +144,13 @@ def eval_masks(data: str | Path, model: str | Path | None = None, tol: int = 2, 
         if true.shape != img.shape[:2]:
             raise ValueError(f"{root / rec['mask']}: mask {true.shape} is not the image's size {img.shape[:2]}")
         marking, drivable = seg.maps([img])
-        counts.add(to_frame_mask(marking[0], img.shape[1], img.shape[0]), true == 1, tol, true == IGNORE)
+        found = counts.add(to_frame_mask(marking[0], img.shape[1], img.shape[0]), true == 1, tol, true == IGNORE)
+        contrast.add(img, true, found)
         if drivable is not None and rec.get("drivable"):
             road_true = read_mask(root / rec["drivable"], encoding)
             road.add(to_frame_mask(drivable[0], img.shape[1], img.shape[0]), road_true)
     out = {"model": str(model or DEFAULT_MODEL), "data": str(root), "mask_encoding": encoding, "tolerance_px": tol,
-           **counts.summary(), "iou": counts.iou}
+           **counts.summary(), "iou": counts.iou, "recall_by_contrast": contrast.rows()}
     if road.frames:
         out.update({"drivable_iou": road.iou, "drivable_frames": road.frames})
     return out

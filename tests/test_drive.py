@@ -889,3 +889,35 @@ def test_a_painted_crossing_is_laid_along_a_noisy_road_heading_not_the_mouths_la
     assert abs(laid(BehaviourParams()) - 0.04) < math.radians(2.0)
     # (with only the strict test, the mouth's lane lays it: 0.22 rad off the car's north)
     assert abs(laid(BehaviourParams(painted_heading_spread=math.radians(2.0))) - 0.22) < 1e-6
+
+
+def test_straight_past_a_lone_opening_hands_over_to_a_lane_that_bends_away_from_it():
+    # held-out random looks, painted, seed 309: a left opening where the road bent right. The
+    # crossing was planned straight while the lane still ran straight; its lane then bent right
+    # for 5 m and the path laid straight left the road before its end. The lane takes over once
+    # it has bent away for bend_away_m; bending towards the opening (its side road's lines), or
+    # away for less than that, the path stays.
+    ys = np.arange(3.5, 14.0, 0.5)
+    p = BehaviourParams()
+
+    def bent(k: float) -> LaneEstimate:
+        return LaneEstimate("test", True, curvature=k, lane_width_m=3.2, path_m=np.column_stack([k * ys ** 2 / 2, ys]))
+
+    for later, frames, handed_over in ((bent(1 / 40), 6, True), (bent(-1 / 40), 6, False),
+                                       (_straight_lane(3.2), 6, False), (bent(1 / 40), 3, False)):
+        b = Behaviour()
+        for i in range(4):  # planned straight on from 9.5 m, the lane straight
+            n = 11.0 - 0.5 * i
+            view = JunctionView(Opening(n, n + 5.0, True, dead=False), None, True, straight_dead=False)
+            b.step(0.1 * i, OdoPose(0.0, 0.5 * i), 0.5 * i, 3.0, _straight_lane(3.2), view)
+        assert [d["turn"] for d in b.decisions] == ["straight"] and b.path is not None
+        states = []
+        for i in range(4, 4 + frames):  # 0.4 m a frame along the path, the opening still in view
+            n = 11.0 - 2.0 - 0.4 * (i - 4)
+            view = JunctionView(Opening(n, n + 5.0, True, dead=False), None, True, straight_dead=False)
+            states.append(b.step(0.1 * i, OdoPose(0.0, 2.0 + 0.4 * (i - 4)), 2.0 + 0.4 * (i - 4), 3.0, later, view)[2])
+        assert (b.path is None) == handed_over, states
+        assert len(b.decisions) == 1  # not planned again while the opening is passed
+        if handed_over:
+            first = states.index("cruise")  # handed over on the first frame bend_away_m past the first bent one
+            assert 0.4 * (first - 1) < p.bend_away_m <= 0.4 * first
