@@ -119,8 +119,8 @@ class BehaviourParams:
     # straight once it has bent away from the opening (as sharply as bend_straight_on) on every
     # frame over this many metres, the car placed in it as out of a turn (handover_offset_painted):
     # the road bends at the junction, and its far side's edge line, unbroken, shows where (held-out
-    # random looks, seed 309, traced: a left opening where the road bent right, its lane bent
-    # 0.011-0.035 1/m for 5 m, and the path laid straight left the road before its end)
+    # random looks, seed 309, traced: a left opening where the road bent right, its lane read
+    # 0.011-0.035 1/m over 5 m, and the path laid straight left the road before its end)
     bend_away_m: float = 1.0
 
 
@@ -363,7 +363,7 @@ class Behaviour:
     def _bends_away(self, lane: LaneEstimate, odo_m: float) -> bool:
         """Driving straight on past a lone opening of a painted road: has the lane bent away from
         the opening on every frame of the last bend_away_m, the car placed in it (bend_away_m)?"""
-        lone = self._plan.get("lone") if self._plan is not None else None
+        lone = self._plan["lone"] if self._plan is not None else None
         away = (self.turn == "straight" and self.two_lane and lone is not None and lane.found
                 and lane.offset <= self.p.handover_offset_painted
                 and self._bends_towards(lane, "right" if lone == "left" else "left", self.p.bend_straight_on))
@@ -573,6 +573,7 @@ class Behaviour:
         self._plan = {"odo_m": odo_m, "until_m": odo_m + max(near - self.p.replan_margin_m, 0.0), "far_m": far,
                       "sign": sign.label if sign else None, "memory": sign, "turn": self.turn,
                       "dead_at_plan": bool(self._dead.get(self.turn)),
+                      "lone": next(iter(sides)) if len(sides) == 1 else None,  # a lone opening's side (_bends_away)
                       # the road's direction (odometry frame, radians CCW) the path is laid along
                       "road_dir": None if heading is None else pose.heading + heading}
         if self.turn == "straight" and (not self.two_lane or (len(sides) == 1 and self._bend_inside(
@@ -595,7 +596,6 @@ class Behaviour:
             self.path[min(int(far / _PATH_STEP_M), len(self.path) - 1)]
         self._seen_path = None  # traced before the junction: not the way out of it
         self._bent_away_since = None
-        self._plan["lone"] = next(iter(sides)) if len(sides) == 1 else None
         self.follow.reset()
         return True
 

@@ -14,7 +14,7 @@ glare), or paint it should have found.
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import cv2
@@ -73,12 +73,8 @@ class ContrastRecall:
     levels the paint cannot be told from the road in the image at all."""
 
     box: int = 15
-    paint: np.ndarray = None
-    found: np.ndarray = None
-
-    def __post_init__(self) -> None:
-        self.paint = np.zeros(len(CONTRAST_EDGES) - 1, np.int64)
-        self.found = np.zeros(len(CONTRAST_EDGES) - 1, np.int64)
+    paint: np.ndarray = field(default_factory=lambda: np.zeros(len(CONTRAST_EDGES) - 1, np.int64))
+    found: np.ndarray = field(default_factory=lambda: np.zeros(len(CONTRAST_EDGES) - 1, np.int64))
 
     def add(self, image_bgr: np.ndarray, true_ids: np.ndarray, found: np.ndarray) -> None:
         """true_ids: uint8 (H, W) 0/1/255; found: bool (H, W), the true pixels found."""
