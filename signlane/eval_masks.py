@@ -7,6 +7,9 @@ Pixels without a label (a dataset's 255s, signlane.label_masks) count nowhere: a
 there is neither right nor wrong. `iou` is the exact pixel IoU (no tolerance) over the labelled
 pixels. A road model (seg_model.ROAD_CLASSES) on a set with road masks (`drivable/<id>.png`,
 gen lanes --drivable) is also scored on the road surface: `drivable_iou`, exact pixel IoU.
+The marking mask scored is the one `infer --save-masks` writes for segnet: the model's map brought
+up to the frame, sharpened on the frame's own pixels where one output cell spans 3 or more of
+them (lanes/sharp_marking.py).
 `recall_by_contrast` splits the labelled paint by how far it stands out of the ground around it
 in the image (ContrastRecall): what a model misses can be paint nobody could see (night, fog,
 glare), or paint it should have found.
@@ -124,6 +127,7 @@ def eval_masks(data: str | Path, model: str | Path | None = None, tol: int = 2, 
     folder (labels.jsonl with images/ and masks/, e.g. a fresh `signlane gen lanes --seed S`),
     in either mask encoding (signlane.label_masks); pixels without a label count nowhere."""
     from signlane.lanes.seg_model import DEFAULT_MODEL, LaneSegModel, to_frame_mask
+    from signlane.lanes.sharp_marking import sharpen_marking
     seg = LaneSegModel(model or DEFAULT_MODEL, threads)
     root = Path(data)
     labels = root / "labels.jsonl"
@@ -140,7 +144,10 @@ def eval_masks(data: str | Path, model: str | Path | None = None, tol: int = 2, 
         if true.shape != img.shape[:2]:
             raise ValueError(f"{root / rec['mask']}: mask {true.shape} is not the image's size {img.shape[:2]}")
         marking, drivable = seg.maps([img])
-        found = counts.add(to_frame_mask(marking[0], img.shape[1], img.shape[0]), true == 1, tol, true == IGNORE)
+        h, w = img.shape[:2]
+        cell = max(w / marking.shape[2], h / marking.shape[1])  # frame pixels per output cell
+        pred = sharpen_marking(to_frame_mask(marking[0], w, h), img, cell)  # the mask infer --save-masks writes
+        found = counts.add(pred, true == 1, tol, true == IGNORE)
         contrast.add(img, true, found)
         if drivable is not None and rec.get("drivable"):
             road_true = read_mask(root / rec["drivable"], encoding)

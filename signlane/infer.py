@@ -30,6 +30,8 @@ from signlane.drive.stack import DriveStack, ToldCar
 from signlane.draw import contact_sheet, draw_boxes, draw_hud, draw_lane, write_image
 from signlane.fileio import atomic_open_text, atomic_write_text
 from signlane.imagecheck import DEFAULT_MAX_PIXELS
+from signlane.lanes import seg_model
+from signlane.lanes.sharp_marking import sharpen_marking
 from signlane.media import MediaError, Source, expand, iter_video, read_image, video_info
 from signlane.tables import pairs
 from signlane.video_out import VideoOut
@@ -170,8 +172,12 @@ def _frames(src: Source, max_pixels: int) -> Iterator[np.ndarray]:
 class Writer:
     """Annotated images/videos and lane masks under `out`; JSON lines to a stream."""
 
-    def __init__(self, out: Path | None, save_masks: bool, json_stream: IO[str] | None):
+    def __init__(self, out: Path | None, save_masks: bool, json_stream: IO[str] | None, marking_size: tuple = ()):
+        """marking_size: (w, h) of the segmentation model's maps when the lane method is `segnet`
+        (its lane mask, the model's marking brought up to the frame, is sharpened on the frame's
+        own pixels: lanes/sharp_marking.py); () otherwise."""
         self.out, self.save_masks, self.json = out, save_masks, json_stream
+        self.marking_size = marking_size
         self._video: VideoOut | None = None
         self._sheet: list[tuple[int, np.ndarray]] = []  # a video's frames for its contact sheet
         self._sheet_every, self._sheet_path = 1, None
@@ -205,7 +211,11 @@ class Writer:
             h, w = p.frame.image_bgr.shape[:2]
             mask = p.lane.debug_mask if p.lane.debug_mask is not None else np.zeros((h, w), np.uint8)
             name = f"{stem}_lane.png" if src.kind == "image" else f"{stem}_{index:06d}_lane.png"
-            write_image(self.out / name, _at_size(mask, w, h))
+            mask = _at_size(mask, w, h)
+            if self.marking_size and p.lane.method == "segnet":
+                cell = max(w / self.marking_size[0], h / self.marking_size[1])
+                mask = sharpen_marking(mask, p.frame.image_bgr, cell)
+            write_image(self.out / name, mask)
             if p.lane.drivable_mask is not None:  # the method has a road output
                 write_image(self.out / name.replace("_lane.png", "_drivable.png"), _at_size(p.lane.drivable_mask, w, h))
 
@@ -249,7 +259,11 @@ def run_infer(paths: list[str], config: Config, out: Path | None = None, json_pa
                 stream = stack.enter_context(atomic_open_text(json_path))
             except OSError as e:
                 raise OutputError(f"--json {json_path}: cannot write there ({e.strerror or e})") from None
-        writer = Writer(out, save_masks, stream)
+        marking_size = ()
+        if save_masks and config.lanes.method == "segnet":
+            spec = seg_model.load(seg_model.resolve(config.lanes.model)).spec  # (its maps are at its input's size)
+            marking_size = (spec.width, spec.height)
+        writer = Writer(out, save_masks, stream, marking_size)
         bar = stack.enter_context(tqdm(total=len(sources), desc="infer", unit="input", file=sys.stderr,
                                        disable=not progress or len(sources) < 2))
         pipe = stack.enter_context(Pipeline(config))

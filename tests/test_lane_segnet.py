@@ -217,3 +217,24 @@ def test_shipped_model_meets_a_floor_on_a_fresh_seeded_set():
         errs += [abs(est.offset - smp.truth.offset)] if est.found else []
     assert counts.summary()["f1"] >= 0.8
     assert found >= 34 and np.median(errs) < 0.08
+
+
+def test_infer_segnet_sharpens_its_mask_on_a_large_frame(tmp_path, capsys):
+    # at 640x480 one cell of the model's 160x120 map spans 4 pixels: the written mask is the
+    # band brought up to the frame, narrowed to the frame's own paint (lanes/sharp_marking.py)
+    sampler = FrameSampler(3, SamplerConfig(640, 480, effects="clean", randomise=False))
+    model = seg_model.LaneSegModel(seg_model.DEFAULT_MODEL)
+    band, sharp = MaskCounts(), MaskCounts()
+    for i in range(3):
+        smp = sampler.sample(i)
+        cv2.imwrite(str(tmp_path / f"f{i}.png"), smp.image)
+        assert main(["infer", "--no-progress", "--lanes", "segnet", str(tmp_path / f"f{i}.png"), "--out",
+                     str(tmp_path / "out"), "--save-masks"]) == 0
+        written = cv2.imread(str(tmp_path / "out" / f"f{i}_lane.png"), cv2.IMREAD_UNCHANGED)
+        coarse = seg_model.to_frame_mask(model.probabilities([smp.image])[0], 640, 480)
+        assert written.shape == (480, 640) and np.count_nonzero(written & ~coarse) == 0
+        band.add(coarse, smp.truth.marking_mask)
+        sharp.add(written, smp.truth.marking_mask)
+    b, s = band.summary(), sharp.summary()
+    assert s["precision"] > b["precision"] + 0.05 and s["recall"] > b["recall"] - 0.03
+    capsys.readouterr()
