@@ -5,10 +5,11 @@ photo, each of its cells spans 6 pixels, and a line it found becomes a band seve
 than the paint. Scored within 2 px of hand-drawn paint, the band's margins count as false paint.
 Inside the band the frame itself says where the paint is: paint is lighter than the road around
 it. So where one output cell spans at least `min_cell_px` frame pixels, a band pixel is kept
-where its lightness above the local ground (a white top-hat, the lightness less its opening
-over a window reaching `reach_cells` cells either side, wider than any line's band) reaches `keep_share` of the
-highest such value near it; where that highest value is under `min_contrast` levels, the image
-shows no line there (night, fog, glare) and the band is kept as the model drew it.
+where its lightness above the local ground (a white top-hat: the lightness less its opening over
+a window reaching `reach_cells` cells either side, wider than any line's band) reaches
+`keep_share` of the highest such value near it; where that highest value is under
+`min_contrast` levels, the image shows no line there (night, fog, glare) and the band is kept as
+the model drew it.
 
 The numbers were chosen on heavy mixed dev sets (`eval masks`, the shipped model; seeds 9100 at
 960 wide, 9101 at 640x480, 7243 at 320x240); on fresh ones (500 frames each) marking F1 goes from
@@ -47,6 +48,7 @@ def sharpen_marking(band: np.ndarray, image_bgr: np.ndarray, cell_px: float,
     window = cv2.getStructuringElement(cv2.MORPH_RECT, (k, k))
     light = cv2.cvtColor(image_bgr, cv2.COLOR_BGR2LAB)[:, :, 0]
     step = cv2.morphologyEx(light, cv2.MORPH_TOPHAT, window)  # lightness above the local ground
-    peak = cv2.dilate(cv2.bitwise_and(step, band), window)  # the highest step of the band near each pixel
+    on = band > 0
+    peak = cv2.dilate(np.where(on, step, np.uint8(0)), window)  # the band's highest step near each pixel
     paint = (step.astype(np.float32) >= p.keep_share * peak) | (peak < p.min_contrast)
-    return np.where(paint & (band > 0), np.uint8(255), np.uint8(0))
+    return np.where(paint & on, np.uint8(255), np.uint8(0))
