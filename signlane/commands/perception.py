@@ -85,7 +85,9 @@ def add_eval(sub) -> None:
                              description="Precision, recall and F1 of segnet's lane-marking mask against a lane "
                                          "dataset's masks (make a fresh one with `signlane gen lanes --seed S`), "
                                          "with a pixel tolerance, at each frame's size, and the exact pixel IoU; "
-                                         "pixels a mask marks 255 (no label) count nowhere.")
+                                         "pixels a mask marks 255 (no label) count nowhere. The mask scored is the "
+                                         "one `infer --lanes segnet --save-masks` writes: on frames 3 or more times "
+                                         "the model's size, its band sharpened to the frame's own paint.")
     masks.add_argument("data", type=Path, help="lane dataset folder (labels.jsonl, images/, masks/)")
     masks.add_argument("--model", type=Path, help="ONNX model (default: the shipped signlane/models/lanes.onnx)")
     masks.add_argument("--tol", type=int, default=2, help="tolerance in pixels (default 2)")
