@@ -145,13 +145,13 @@ def eval_masks(data: str | Path, model: str | Path | None = None, tol: int = 2, 
             raise ValueError(f"{root / rec['mask']}: mask {true.shape} is not the image's size {img.shape[:2]}")
         marking, drivable = seg.maps([img])
         h, w = img.shape[:2]
-        cell = max(w / marking.shape[2], h / marking.shape[1])  # frame pixels per output cell
-        pred = sharpen_marking(to_frame_mask(marking[0], w, h), img, cell)  # the mask infer --save-masks writes
+        # the mask infer --save-masks writes for segnet
+        pred = sharpen_marking(to_frame_mask(marking[0], w, h), img, (marking.shape[2], marking.shape[1]))
         found = counts.add(pred, true == 1, tol, true == IGNORE)
         contrast.add(img, true, found)
         if drivable is not None and rec.get("drivable"):
             road_true = read_mask(root / rec["drivable"], encoding)
-            road.add(to_frame_mask(drivable[0], img.shape[1], img.shape[0]), road_true)
+            road.add(to_frame_mask(drivable[0], w, h), road_true)
     out = {"model": str(model or DEFAULT_MODEL), "data": str(root), "mask_encoding": encoding, "tolerance_px": tol,
            **counts.summary(), "iou": counts.iou, "recall_by_contrast": contrast.rows()}
     if road.frames:

@@ -213,8 +213,7 @@ class Writer:
             name = f"{stem}_lane.png" if src.kind == "image" else f"{stem}_{index:06d}_lane.png"
             mask = _at_size(mask, w, h)
             if self.marking_size and p.lane.method == "segnet":
-                cell = max(w / self.marking_size[0], h / self.marking_size[1])
-                mask = sharpen_marking(mask, p.frame.image_bgr, cell)
+                mask = sharpen_marking(mask, p.frame.image_bgr, self.marking_size)
             write_image(self.out / name, mask)
             if p.lane.drivable_mask is not None:  # the method has a road output
                 write_image(self.out / name.replace("_lane.png", "_drivable.png"), _at_size(p.lane.drivable_mask, w, h))

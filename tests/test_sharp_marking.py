@@ -27,7 +27,7 @@ def _band(true, px):
 def test_a_wide_band_is_sharpened_to_the_line():
     img, true = _road()
     band = _band(true, 6)
-    sharp = sharpen_marking(band, img, cell_px=4.0)
+    sharp = sharpen_marking(band, img, map_size=(160, 120))
     before, after = MaskCounts(), MaskCounts()
     before.add(band, true)
     after.add(sharp, true)
@@ -35,16 +35,16 @@ def test_a_wide_band_is_sharpened_to_the_line():
     assert b["precision"] < 0.6 and a["precision"] > 0.95  # the margins were counted as paint
     assert a["recall"] > 0.99  # every painted pixel still has a predicted one within 2 px
     assert np.count_nonzero(sharp & ~band) == 0  # it only takes pixels away
-    # at cells of 2 px (a 320x240 frame for a 160x120 model) the band is left alone
-    assert np.array_equal(sharpen_marking(band, img, cell_px=2.0), band)
+    # at cells of 2 px (a 320x240 map brought up to 640x480) the band is left alone
+    assert np.array_equal(sharpen_marking(band, img, map_size=(320, 240)), band)
 
 
 def test_a_band_where_the_frame_shows_no_line_is_kept():
     img, true = _road(step=3)  # 3 lightness levels: fog, night
     band = _band(true, 6)
-    assert np.array_equal(sharpen_marking(band, img, cell_px=4.0), band)
+    assert np.array_equal(sharpen_marking(band, img, map_size=(160, 120)), band)
     # with a lower bar the faint line is sharpened too
-    sharp = sharpen_marking(band, img, cell_px=4.0, p=SharpParams(min_contrast=1.0))
+    sharp = sharpen_marking(band, img, map_size=(160, 120), p=SharpParams(min_contrast=1.0))
     assert np.count_nonzero(sharp) < 0.5 * np.count_nonzero(band)
 
 
@@ -53,7 +53,7 @@ def test_a_line_lighter_than_its_neighbourhood_only_on_one_side_of_the_band_keep
     # local ground (the top-hat), so the band still shrinks to the line
     img, true = _road()
     img[:, 420:] = 200
-    sharp = sharpen_marking(_band(true, 6), img, cell_px=4.0)
+    sharp = sharpen_marking(_band(true, 6), img, map_size=(160, 120))
     counts = MaskCounts()
     counts.add(sharp, true)
     assert counts.summary()["precision"] > 0.95 and counts.summary()["recall"] > 0.99

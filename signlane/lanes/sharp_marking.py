@@ -35,15 +35,16 @@ class SharpParams:
     min_contrast: float = 6.0  # a nearby peak under this (CIELAB L levels, 0-255): no line seen
 
 
-def sharpen_marking(band: np.ndarray, image_bgr: np.ndarray, cell_px: float,
+def sharpen_marking(band: np.ndarray, image_bgr: np.ndarray, map_size: tuple[int, int],
                     p: SharpParams = SharpParams()) -> np.ndarray:
-    """uint8 (H, W) 0/255 marking band at the frame's size (the model's map brought up to it),
-    the uint8 (H, W, 3) BGR frame, and how many frame pixels one output cell spans -> uint8
-    (H, W) 0/255, the band's pixels that are the paint."""
-    if cell_px < p.min_cell_px or not band.any():
-        return band
+    """uint8 (H, W) marking band at the frame's size (nonzero: the model's map brought up to
+    it), the uint8 (H, W, 3) BGR frame, and the (w, h) of the model's map -> uint8 (H, W) 0/255,
+    the band's pixels that are the paint."""
     if band.shape != image_bgr.shape[:2]:
         raise ValueError(f"marking band {band.shape} is not the frame's size {image_bgr.shape[:2]}")
+    cell_px = max(band.shape[1] / map_size[0], band.shape[0] / map_size[1])  # frame pixels per output cell
+    if cell_px < p.min_cell_px or not band.any():
+        return band
     k = 2 * max(1, int(round(p.reach_cells * cell_px))) + 1
     window = cv2.getStructuringElement(cv2.MORPH_RECT, (k, k))
     light = cv2.cvtColor(image_bgr, cv2.COLOR_BGR2LAB)[:, :, 0]
