@@ -4,13 +4,14 @@ Layout of `out/`:
     images/<id>.jpg      uint8 BGR frame, JPEG quality 95
     masks/<id>.png       uint8 class ids, the frame's size: 0 background, 1 lane marking
     drivable/<id>.png    uint8 class ids: 0 off the road, 1 road surface (only with drivable=True)
-    (kerbs are 255, no label, in both masks)
+    (kerbs are 255, no label, in both masks; so is paint the frame does not show, in masks/)
     labels.jsonl         one JSON object per frame, in id order (see `frame_label`)
     manifest.json        written last: the folder is complete iff it exists; its
                          "mask_encoding" is signlane.label_masks.IDS ("ids-0-1-255ignore")
 
-The masks' only 255s (ignore) are kerbs (VIA style, see `write_frame`): the renderer labels
-every other pixel it draws. The sky holds no paint
+The masks' only 255s (ignore) are kerbs (VIA style, see `write_frame`) and, in masks/, paint
+that the frame's effects and look leave the colour of the road beside it
+(signlane.paint_visibility): the renderer labels every other pixel it draws. The sky holds no paint
 and is background (a model must learn not to find paint there); beyond the renderer's view range
 it draws neither paint nor road, in the image as in the masks.
 """
@@ -28,6 +29,7 @@ import numpy as np
 from signlane_data.common import (PARTIAL, atomic_imwrite, atomic_write_json, atomic_write_text, file_intact,
                                   partial_dir, prepare_output, run_indexed, sample_id, write_manifest)
 from signlane import label_masks
+from signlane.paint_visibility import unseen_paint
 from signlane.world.render import Sample
 from signlane.world.sampling import PRESETS, FrameSampler, SamplerConfig
 from signlane.world.truth import GroundTruth
@@ -75,7 +77,11 @@ def write_frame(out: Path, sid: str, sample: Sample, drivable: bool, extra: dict
     # asphalt are off-road (it then missed a real highway's dashes and edge lines), so it
     # carries no label in either mask
     kerb = truth.kerb_mask > 0
-    atomic_imwrite(out / "masks" / f"{sid}.png", label_masks.encode(truth.marking_mask > 0, kerb))
+    # paint that night, fog, glare or a pale look left the road's own colour is not in the image:
+    # called paint, it would teach guessing and score every method against what nobody could see
+    paint = truth.marking_mask > 0
+    unseen = unseen_paint(sample.image, paint, ~paint & ~kerb)
+    atomic_imwrite(out / "masks" / f"{sid}.png", label_masks.encode(paint & ~unseen, kerb | unseen))
     if drivable:
         atomic_imwrite(out / "drivable" / f"{sid}.png", label_masks.encode(truth.drivable_mask > 0, kerb))
     label = frame_label(sid, truth, w, h, drivable)

@@ -25,6 +25,7 @@ import numpy as np
 from tqdm import tqdm
 
 from signlane.label_masks import IGNORE, dataset_encoding, read_mask
+from signlane.paint_visibility import paint_contrast
 
 
 @dataclass
@@ -65,30 +66,24 @@ class MaskCounts:
         return self.inter / max(self.union, 1)
 
 
-CONTRAST_EDGES = (0, 4, 8, 16, 32, 64, 256)  # paint contrast bins, CIELAB lightness levels (0-255)
+CONTRAST_EDGES = (0, 4, 8, 16, 32, 64, 256)  # paint contrast bins, CIELAB distance levels (paint_visibility)
 
 
 @dataclass
 class ContrastRecall:
-    """Labelled paint pixels, and those found (within the tolerance), by their contrast: the
-    absolute difference between a paint pixel's lightness (CIELAB L, 0-255) and the mean
-    lightness of the labelled ground that is not paint within `box` px of it. Under about 4
-    levels the paint cannot be told from the road in the image at all."""
+    """Labelled paint pixels, and those found (within the tolerance), by their contrast against
+    the labelled ground beside them (signlane.paint_visibility.paint_contrast). Under about 4
+    levels the paint cannot be told from the road in the image at all (sets made since that rule
+    leave such paint unlabelled)."""
 
-    box: int = 15
     paint: np.ndarray = field(default_factory=lambda: np.zeros(len(CONTRAST_EDGES) - 1, np.int64))
     found: np.ndarray = field(default_factory=lambda: np.zeros(len(CONTRAST_EDGES) - 1, np.int64))
 
     def add(self, image_bgr: np.ndarray, true_ids: np.ndarray, found: np.ndarray) -> None:
         """true_ids: uint8 (H, W) 0/1/255; found: bool (H, W), the true pixels found."""
-        light = cv2.cvtColor(image_bgr, cv2.COLOR_BGR2LAB)[:, :, 0].astype(np.float32)
-        ground = (true_ids == 0).astype(np.float32)
-        size = (self.box, self.box)
-        total = cv2.boxFilter(light * ground, -1, size, normalize=False)
-        count = cv2.boxFilter(ground, -1, size, normalize=False)
-        paint = (true_ids == 1) & (count > 0)  # (paint with no ground beside it: no contrast to measure)
-        contrast = np.abs(light - total / np.maximum(count, 1.0))[paint]
-        bins = np.clip(np.searchsorted(CONTRAST_EDGES, contrast, side="right") - 1, 0, len(self.paint) - 1)
+        contrast = paint_contrast(image_bgr, true_ids == 1, true_ids == 0)
+        paint = ~np.isnan(contrast)  # (paint with no ground beside it: no contrast to measure)
+        bins = np.clip(np.searchsorted(CONTRAST_EDGES, contrast[paint], side="right") - 1, 0, len(self.paint) - 1)
         self.paint += np.bincount(bins, minlength=len(self.paint))
         self.found += np.bincount(bins, weights=found[paint], minlength=len(self.paint)).astype(np.int64)
 

@@ -19,11 +19,24 @@ N = 4
 
 
 @pytest.fixture(scope="module")
-def new_set(tmp_path_factory) -> Path:
+def generated(tmp_path_factory) -> Path:
     """A lane dataset as `signlane gen lanes` writes it now, with drivable masks."""
     from signlane_data.lanes import generate_lanes
     out = tmp_path_factory.mktemp("masks") / "new"
     generate_lanes(out, N, seed=3, drivable=True)
+    return out
+
+
+@pytest.fixture(scope="module")
+def new_set(generated, tmp_path_factory) -> Path:
+    """`generated` with its unseen paint (255: signlane.paint_visibility) made background, so that
+    an old binary set made from it (which cannot say "no label") holds the same labels."""
+    out = tmp_path_factory.mktemp("masks") / "plain"
+    shutil.copytree(generated, out)
+    for p in (out / "masks").glob("*.png"):
+        m = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
+        m[m == label_masks.IGNORE] = 0
+        cv2.imwrite(str(p), m)
     return out
 
 
@@ -48,18 +61,22 @@ def rows(root: Path) -> list[dict]:
 
 
 # --------------------------------------------------------------------------- writing
-def test_generator_writes_class_ids_and_records_the_encoding(new_set):
-    manifest = json.loads((new_set / "manifest.json").read_text())
+def test_generator_writes_class_ids_and_records_the_encoding(generated):
+    manifest = json.loads((generated / "manifest.json").read_text())
     assert manifest["mask_encoding"] == label_masks.IDS == "ids-0-1-255ignore"
-    assert label_masks.dataset_encoding(new_set) == label_masks.IDS
-    painted = 0
-    for r in rows(new_set):
-        for key in ("mask", "drivable"):
-            m = cv2.imread(str(new_set / r[key]), cv2.IMREAD_UNCHANGED)
-            assert m.dtype == np.uint8 and m.shape == (240, 320) and set(np.unique(m)) <= {0, 1}
-        painted += (cv2.imread(str(new_set / r["mask"]), 0) == 1).any()
-        assert (cv2.imread(str(new_set / r["drivable"]), 0) == 1).mean() > 0.05  # the road ahead
+    assert label_masks.dataset_encoding(generated) == label_masks.IDS
+    painted, paint, unseen = 0, 0, 0
+    for r in rows(generated):
+        # painted style: no kerbs, so the marking masks' only 255s are paint the frame does not show
+        for key, ids in (("mask", {0, 1, 255}), ("drivable", {0, 1})):
+            m = cv2.imread(str(generated / r[key]), cv2.IMREAD_UNCHANGED)
+            assert m.dtype == np.uint8 and m.shape == (240, 320) and set(np.unique(m)) <= ids
+        m = cv2.imread(str(generated / r["mask"]), 0)
+        painted += (m == 1).any()
+        paint, unseen = paint + int((m == 1).sum()), unseen + int((m == 255).sum())
+        assert (cv2.imread(str(generated / r["drivable"]), 0) == 1).mean() > 0.05  # the road ahead
     assert painted >= N // 2
+    assert unseen < 0.05 * paint  # most paint is in view: only a little is left unlabelled
 
 
 def test_encode_decode_and_bad_encodings(tmp_path):

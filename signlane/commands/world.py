@@ -31,7 +31,8 @@ def add_gen(sub) -> None:
     lanes = kinds.add_parser("lanes", parents=[common], help="frames + lane-marking masks + labels.jsonl",
                              description="Frames with exact lane-marking masks and labels (images/, masks/, "
                                          "labels.jsonl, manifest.json). Masks are class ids: 0 background, "
-                                         "1 lane marking (255 would be ignore; the renderer leaves none).")
+                                         "1 lane marking, 255 no label (kerbs, and paint the frame does not show: "
+                                         "night, fog, glare or a pale look can leave it the road's colour).")
     lanes.add_argument("--size", type=size_arg, default=(320, 240), help="frame size WxH (default 320x240)")
     lanes.add_argument("--workers", type=positive, default=1, help="worker processes (default 1)")
     lanes.add_argument("--effects", choices=["clean", "normal", "hard", "heavy", "mixed", "wild"], default="mixed",
