@@ -209,14 +209,15 @@ class Writer:
                 self._sheet.append((index, image))
         if self.save_masks:
             h, w = p.frame.image_bgr.shape[:2]
-            mask = p.lane.debug_mask if p.lane.debug_mask is not None else np.zeros((h, w), np.uint8)
+            lane = p.lane.with_masks()  # (segnet puts its frame-sized masks off until they are asked for)
+            mask = lane.debug_mask if lane.debug_mask is not None else np.zeros((h, w), np.uint8)
             name = f"{stem}_lane.png" if src.kind == "image" else f"{stem}_{index:06d}_lane.png"
             mask = _at_size(mask, w, h)
-            if self.marking_size and p.lane.method == "segnet":
+            if self.marking_size and lane.method == "segnet":
                 mask = sharpen_marking(mask, p.frame.image_bgr, self.marking_size)
             write_image(self.out / name, mask)
-            if p.lane.drivable_mask is not None:  # the method has a road output
-                write_image(self.out / name.replace("_lane.png", "_drivable.png"), _at_size(p.lane.drivable_mask, w, h))
+            if lane.drivable_mask is not None:  # the method has a road output
+                write_image(self.out / name.replace("_lane.png", "_drivable.png"), _at_size(lane.drivable_mask, w, h))
 
     def end_source(self, ok: bool) -> None:
         if self._video is not None:

@@ -7,7 +7,8 @@ the car's axis and the lane direction, positive when the car points to the right
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from typing import Callable
 
 import numpy as np
 
@@ -42,6 +43,17 @@ class LaneEstimate:
     # uint8 (H, W) 0/255 road surface at the frame's size, from a method with a road output
     # (segnet's road model, road-edges), else None
     drivable_mask: np.ndarray | None = None
+    # the two masks above, put off: frame-sized arrays only a viewer reads (infer's written masks,
+    # the monitor), made by `with_masks` where one is wanted; the car never pays for them
+    masks_later: Callable[[], tuple[np.ndarray | None, np.ndarray | None]] | None = \
+        field(default=None, repr=False, compare=False)
+
+    def with_masks(self) -> "LaneEstimate":
+        """This estimate with the masks it put off made (itself when it put none off)."""
+        if self.masks_later is None:
+            return self
+        debug, drivable = self.masks_later()
+        return replace(self, debug_mask=debug, drivable_mask=drivable, masks_later=None)
 
 
 @dataclass(frozen=True)

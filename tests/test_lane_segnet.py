@@ -156,7 +156,21 @@ def test_segnet_method_returns_a_lane_estimate_with_its_mask(trained):
     image = FrameSampler(3, SamplerConfig(effects="clean", randomise=False)).sample(0).image
     for img in (image, cv2.cvtColor(image, cv2.COLOR_BGR2GRAY), image[:10, :10]):
         est = lanes.get("segnet", model=str(onnx_path))(img)
-        assert est.method == "segnet" and est.debug_mask.shape == img.shape[:2]
+        assert est.method == "segnet" and est.with_masks().debug_mask.shape == img.shape[:2]
+
+
+def test_segnet_puts_its_frame_sized_masks_off_until_asked(trained):
+    """The car never waits for the network's masks at the frame's size: the estimate carries
+    none, and `with_masks` makes exactly the masks the maps give at the frame's size."""
+    from signlane.lanes.seg_model import LaneSegModel, to_frame_mask
+    _, _, _, onnx_path, _ = trained
+    image = cv2.resize(FrameSampler(3, SamplerConfig(effects="clean", randomise=False)).sample(0).image, (640, 480))
+    est = lanes.get("segnet", model=str(onnx_path))(image)
+    assert est.debug_mask is None and est.drivable_mask is None and est.masks_later is not None
+    shown = est.with_masks()
+    want = to_frame_mask(LaneSegModel(onnx_path).probabilities([image])[0], 640, 480)
+    assert shown.masks_later is None and np.array_equal(shown.debug_mask, want) and want.any()
+    assert shown.with_masks() is shown and shown.offset == est.offset and shown.found == est.found
 
 
 def test_missing_corrupt_and_foreign_models_give_clear_errors(tmp_path, capsys):

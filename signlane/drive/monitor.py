@@ -174,7 +174,7 @@ class Monitor:
         if topic == "rgb":
             return image
         if topic in ("mask", "drivable"):
-            lane = snap.perception.lane
+            lane = snap.perception.lane.with_masks()  # (made here, for the viewer: the car never waits for them)
             mask = lane.debug_mask if topic == "mask" else lane.drivable_mask
             if mask is None:  # (a lane method with no road output: nothing to show)
                 return np.zeros((h, w), np.uint8)

@@ -8,7 +8,8 @@ sliding-window method's bases, windows, ego-pair choice, plausibility checks and
 (`sliding_window.lanes_from_binary`, `geometry`) give the LaneEstimate. Where the classical
 binary guesses paint from brightness, the network has learned it from exact masks under night,
 rain, glare, shadows and worn paint. The debug mask is the network's marking mask at the
-frame's size (what `infer --save-masks` writes).
+frame's size (what `infer --save-masks` writes), made only where a viewer asks for it
+(`LaneEstimate.with_masks`), as is the road mask.
 
 A road model (seg_model.ROAD_CLASSES; the shipped model is one) also gives P(road surface). Where the paint gives no lane
 (VIA's kerbed carriageway has none; worn or hidden paint), the carriageway is found as
@@ -77,25 +78,32 @@ def segnet(image_bgr: np.ndarray, camera: Camera | None, params: SegNetParams,
     image_bgr = np.ascontiguousarray(image_bgr[:, :, :3])
     maps = model.frame_maps(image_bgr, params.threshold)
     cam = camera_for(image_bgr, camera)
-    debug = maps.frame_mask(maps.marking, w, h)
-    est, paint_state = paint_lane(NAME, maps, cam, params.backend, state.paint, debug)
-    if maps.road is None:
-        return est, SegNetState(paint_state, state.road)
-    if est.found:
-        return replace(est, drivable_mask=maps.frame_mask(maps.road, w, h)), SegNetState(paint_state, state.road)
+    est, paint_state = paint_lane(NAME, maps, cam, params.backend, state.paint, own_debug=False)
+    if est.found or maps.road is None:
+        # the network's masks at the frame's size (two resizes: 0.25 ms a frame at 640x480) are for
+        # viewers only (infer --save-masks, the monitor): made where one asks (with_masks)
+        return replace(est, masks_later=_frame_masks(maps, w, h)), SegNetState(paint_state, state.road)
     edges, road_state = edges_lane(NAME, image_bgr, cam, params.road, state.road, maps)
-    return replace(edges, debug_mask=debug), SegNetState(paint_state, road_state)  # its drivable_mask: the model's
+    road = edges.drivable_mask  # the carriageway's: the model's road as the edge scan read it
+    return replace(edges, drivable_mask=None, masks_later=lambda: (maps.frame_mask(maps.marking, w, h), road)), \
+        SegNetState(paint_state, road_state)
+
+
+def _frame_masks(maps: seg_model.FrameMaps, w: int, h: int):
+    """The put-off (marking, road or None) masks of a frame w x h, as LaneEstimate.masks_later."""
+    return lambda: (maps.frame_mask(maps.marking, w, h), None if maps.road is None else maps.frame_mask(maps.road, w, h))
 
 
 def paint_lane(method: str, maps: seg_model.FrameMaps, cam: Camera, backend: SlidingWindowParams,
-               state: SlidingWindowState | None, debug: np.ndarray | None = None
+               state: SlidingWindowState | None, own_debug: bool = True
                ) -> tuple[LaneEstimate, SlidingWindowState]:
     """The ego lane from the model's lane paint: its P(marking) warped straight into the
     sliding-window back-end's bird's-eye view (one homography: output pixel -> frame pixel ->
-    bird's-eye), thresholded, and the back-end's bases, windows, ego pair and fits."""
+    bird's-eye), thresholded, and the back-end's bases, windows, ego pair and fits. The debug
+    mask is the back-end's (the kept lines' pixels), or none with own_debug=False."""
     def binary_of(bev: BirdsEye, valid: np.ndarray) -> np.ndarray:
         return (maps.warped(maps.marking, bev.image_to_bev_h(), bev.size) & (valid > 0)).astype(np.uint8) * 255
-    return lanes_from_binary(method, binary_of, cam, backend, state, debug_mask=debug)
+    return lanes_from_binary(method, binary_of, cam, backend, state, own_debug=own_debug)
 
 
 def edges_lane(method: str, image_bgr: np.ndarray, cam: Camera, p: RoadEdgesParams, state: RoadEdgesState,
