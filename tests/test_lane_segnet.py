@@ -171,6 +171,7 @@ def test_segnet_puts_its_frame_sized_masks_off_until_asked(trained):
     want = to_frame_mask(LaneSegModel(onnx_path).probabilities([image])[0], 640, 480)
     assert shown.masks_later is None and np.array_equal(shown.debug_mask, want) and want.any()
     assert shown.with_masks() is shown and shown.offset == est.offset and shown.found == est.found
+    assert est.masks_later()[0] is est.masks_later()[0]  # made once, however many viewers ask
 
 
 def test_missing_corrupt_and_foreign_models_give_clear_errors(tmp_path, capsys):

@@ -5,7 +5,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from signlane.paint_visibility import UNSEEN_BELOW, paint_contrast, unseen_paint
+from signlane.paint_visibility import paint_contrast, unseen_paint
 
 
 def _road_with_strips(levels: list[tuple[int, int, int]], road=(90, 90, 90), noise: float = 0.0):
@@ -55,4 +55,3 @@ def test_paint_with_no_ground_near_is_kept():
     paint = np.ones((30, 30), bool)  # all paint: nothing to compare it with
     assert np.isnan(paint_contrast(img, paint, ~paint)).all()
     assert not unseen_paint(img, paint, ~paint).any()
-    assert UNSEEN_BELOW == 4.0

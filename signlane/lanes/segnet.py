@@ -22,6 +22,7 @@ road at the frame's size (`infer --save-masks` writes it as <stem>_drivable.png)
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from functools import cache
 
 import cv2
 import numpy as np
@@ -84,14 +85,19 @@ def segnet(image_bgr: np.ndarray, camera: Camera | None, params: SegNetParams,
         # viewers only (infer --save-masks, the monitor): made where one asks (with_masks)
         return replace(est, masks_later=_frame_masks(maps, w, h)), SegNetState(paint_state, state.road)
     edges, road_state = edges_lane(NAME, image_bgr, cam, params.road, state.road, maps)
-    road = edges.drivable_mask  # the carriageway's: the model's road as the edge scan read it
-    return replace(edges, drivable_mask=None, masks_later=lambda: (maps.frame_mask(maps.marking, w, h), road)), \
+    # (its road mask, the model's road at the frame's size, the edge scan has made already)
+    return replace(edges, drivable_mask=None, masks_later=_frame_masks(maps, w, h, edges.drivable_mask)), \
         SegNetState(paint_state, road_state)
 
 
-def _frame_masks(maps: seg_model.FrameMaps, w: int, h: int):
-    """The put-off (marking, road or None) masks of a frame w x h, as LaneEstimate.masks_later."""
-    return lambda: (maps.frame_mask(maps.marking, w, h), None if maps.road is None else maps.frame_mask(maps.road, w, h))
+def _frame_masks(maps: seg_model.FrameMaps, w: int, h: int, road: np.ndarray | None = None):
+    """LaneEstimate.masks_later for a frame w x h: its (marking, road or None) masks, made once
+    however many viewers ask (the monitor's mask and road views both do); `road`: one made already."""
+    @cache
+    def made():
+        drivable = road if road is not None or maps.road is None else maps.frame_mask(maps.road, w, h)
+        return maps.frame_mask(maps.marking, w, h), drivable
+    return made
 
 
 def paint_lane(method: str, maps: seg_model.FrameMaps, cam: Camera, backend: SlidingWindowParams,

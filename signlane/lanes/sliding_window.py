@@ -161,22 +161,22 @@ def sliding_window(image_bgr: np.ndarray, camera: Camera | None, params: Sliding
 
 
 def lanes_from_binary(name: str, binary_of, cam: Camera, params: SlidingWindowParams,
-                      state: SlidingWindowState | None, debug_mask: np.ndarray | None = None,
-                      debug_later: bool = False, own_debug: bool = True) -> tuple[LaneEstimate, SlidingWindowState]:
+                      state: SlidingWindowState | None, debug_later: bool = False,
+                      own_debug: bool = True) -> tuple[LaneEstimate, SlidingWindowState]:
     """The back-end after the binary, shared with the learned `segnet`: `binary_of(bev, valid)`
     gives the uint8 0/255 lane-paint mask of a bird's-eye view (valid = where it sees ground);
-    bases, windows, ego pair, checks and fits follow. `debug_mask` replaces the default one
-    (the kept lines' pixels); debug_later: none now, the new state's `debug_later()` makes it (a
-    warp of the frame's size, which only a viewer of the mask reads); own_debug=False: none at all
-    (the caller's estimate carries its own, e.g. segnet's put-off network mask)."""
+    bases, windows, ego pair, checks and fits follow. The debug mask is the kept lines' pixels;
+    debug_later: none now, the new state's `debug_later()` makes it (a warp of the frame's size,
+    which only a viewer of the mask reads); own_debug=False: none at all (the caller's estimate
+    carries its own, e.g. segnet's put-off network mask)."""
     state = state or SlidingWindowState(lane_width_m=params.lane_width_m)
-    want = "later" if debug_later else debug_mask is None and own_debug
+    want = "later" if debug_later else own_debug
     lb, rb, conf, debug, tracked = _detect(binary_of, cam, params, state, params.depth_m, want)
     if lb is None and rb is None and params.retry_depth_m > params.depth_m:
         # no line near the car: look further ahead (less accurate there, better than nothing)
         lb, rb, conf, debug, tracked = _detect(binary_of, cam, params, state, params.retry_depth_m, want)
     later = debug if debug_later else None
-    shown = None if debug_later else debug if debug_mask is None else debug_mask
+    shown = None if debug_later else debug
     est = estimate_from_fits(name, cam, lb, rb, state.lane_width_m, conf, shown)
     if not est.found:
         return est, _lost(state, later)
